@@ -1,0 +1,1 @@
+"""Finite-element spaces, assembly of linear elasticity, loads and constraints."""

@@ -1,0 +1,121 @@
+"""Vector P1/P2 function spaces on a :class:`~fem_frac.mesh.Mesh`, built on scikit-fem.
+
+Degrees of freedom are numbered ``3 * node + component`` where ``node`` is scikit-fem's
+scalar dof (vertices first, then edge mid-nodes for P2). This is the numbering of
+``ElementVector`` in scikit-fem, so its tools (``condense``, facet dofs) apply unchanged,
+but only the scalar basis is evaluated: a vector P2 basis at 1e5 tets would hold ~1 GB of
+redundant copies of the same gradients.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..mesh.mesh import Mesh, facet_keys
+
+# Quadrature order per element order: exact for the stiffness of straight-sided tets
+# (P1: constant integrand, one point; P2: quadratic integrand, four points).
+INTORDER = {1: 0, 2: 2}
+
+
+@dataclass(frozen=True, eq=False)
+class Space:
+    """A vector-valued Lagrange space.
+
+    Attributes
+    ----------
+    mesh: the mesh it lives on.
+    order: 1 or 2.
+    skmesh: the scikit-fem mesh (``MeshTet1``, or ``MeshTet2`` for curved quadratic geometry).
+    basis: scalar scikit-fem ``CellBasis``; ``basis.dx`` is ``(n_tets, n_qp)``.
+    element_dofs: ``(n_tets, 3 * n_local)`` vector dofs of each tet, ordered
+        ``(local node a, component i) -> 3 a + i``.
+    node_points: ``(n_nodes, 3)`` reference position of every scalar node.
+    """
+
+    mesh: Mesh
+    order: int
+    skmesh: object
+    basis: object
+    element_dofs: np.ndarray
+    node_points: np.ndarray
+
+    @property
+    def n_nodes(self) -> int:
+        return self.node_points.shape[0]
+
+    @property
+    def n_dofs(self) -> int:
+        return 3 * self.n_nodes
+
+    @property
+    def n_qp(self) -> int:
+        return self.basis.X.shape[1]
+
+    def gradients(self) -> np.ndarray:
+        """Scalar shape-function gradients ``(n_local, 3, n_tets, n_qp)`` in 1/length."""
+        return np.stack([b[0].grad for b in self.basis.basis])
+
+    def facet_indices(self, triples: np.ndarray) -> np.ndarray:
+        """scikit-fem facet ids of boundary triangles given as vertex triples ``(k, 3)``."""
+        keys = facet_keys(self.skmesh.facets.T, self.mesh.n_points)
+        order = np.argsort(keys)
+        wanted = facet_keys(triples, self.mesh.n_points)
+        pos = np.searchsorted(keys, wanted, sorter=order)
+        pos = np.minimum(pos, len(keys) - 1)
+        found = keys[order[pos]] == wanted
+        if not np.all(found):
+            raise ValueError(f"{np.count_nonzero(~found)} facets are not faces of the mesh")
+        return order[pos]
+
+
+def skfem_mesh(mesh: Mesh, order: int):
+    """scikit-fem mesh for ``mesh``: isoparametric ``MeshTet2`` when curved and ``order == 2``."""
+    from skfem import MeshTet1, MeshTet2
+
+    linear = MeshTet1(
+        np.ascontiguousarray(mesh.points.T, dtype=np.float64),
+        np.ascontiguousarray(mesh.tets.T, dtype=np.int64),
+    )
+    if order == 1 or not mesh.curved:
+        return linear
+    quadratic = MeshTet2.from_mesh(linear)
+    doflocs = quadratic.doflocs.copy()
+    # MeshTet2 dofs: vertices, then one mid-node per edge in the order of ``linear.edges``.
+    keys = _edge_keys(linear.edges.T, mesh.n_points)
+    order_ = np.argsort(keys)
+    wanted = _edge_keys(mesh.edges, mesh.n_points)
+    pos = order_[np.minimum(np.searchsorted(keys, wanted, sorter=order_), len(keys) - 1)]
+    ok = keys[pos] == wanted
+    doflocs[:, mesh.n_points + pos[ok]] = mesh.edge_points[ok].T
+    from dataclasses import replace
+
+    return replace(quadratic, doflocs=doflocs)
+
+
+def _edge_keys(pairs: np.ndarray, n_points: int) -> np.ndarray:
+    s = np.sort(np.asarray(pairs, dtype=np.int64), axis=1)
+    return s[:, 0] * np.int64(n_points) + s[:, 1]
+
+
+def build_space(mesh: Mesh, order: int) -> Space:
+    """The vector P``order`` space on ``mesh`` with its quadrature (see ``INTORDER``)."""
+    from skfem import CellBasis, ElementTetP1, ElementTetP2
+
+    if order not in INTORDER:
+        raise ValueError(f"element order must be 1 or 2, got {order}")
+    m = skfem_mesh(mesh, order)
+    element = ElementTetP1() if order == 1 else ElementTetP2()
+    basis = CellBasis(m, element, intorder=INTORDER[order])
+    scalar = basis.element_dofs.T  # (n_tets, n_local)
+    element_dofs = (3 * scalar[:, :, None] + np.arange(3)).reshape(scalar.shape[0], -1)
+    return Space(
+        mesh=mesh,
+        order=order,
+        skmesh=m,
+        basis=basis,
+        element_dofs=element_dofs,
+        node_points=np.ascontiguousarray(basis.doflocs.T),
+    )

@@ -1,0 +1,61 @@
+"""Symmetric tensors as 6-vectors, components first: ``(6, ...)``.
+
+Two layouts, both in VTK's component order XX, YY, ZZ, XY, YZ, XZ:
+
+- *Mandel* (``m``): shear components scaled by sqrt(2). Double contraction is a plain dot
+  product and a fourth-order tangent is a symmetric 6x6 matrix. Used inside the solver.
+- *tensor* (``t``): plain components, what ParaView shows. Used for output only.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+SQRT2 = np.sqrt(2.0)
+# (row, column) of each 6-vector component in the 3x3 tensor, VTK order.
+COMPONENTS = ((0, 0), (1, 1), (2, 2), (0, 1), (1, 2), (0, 2))
+_MANDEL_SCALE = np.array([1.0, 1.0, 1.0, SQRT2, SQRT2, SQRT2])
+
+
+def mandel_from_matrix(a: np.ndarray) -> np.ndarray:
+    """``(3, 3, ...)`` symmetric (or symmetrized) tensor -> ``(6, ...)`` Mandel vector."""
+    out = np.empty((6,) + a.shape[2:])
+    for k, (i, j) in enumerate(COMPONENTS):
+        out[k] = a[i, j] if i == j else (a[i, j] + a[j, i]) / SQRT2
+    return out
+
+
+def tensor_from_mandel(m: np.ndarray) -> np.ndarray:
+    """``(6, ...)`` Mandel -> ``(6, ...)`` plain tensor components (VTK order)."""
+    return m / _MANDEL_SCALE.reshape((6,) + (1,) * (m.ndim - 1))
+
+
+def isotropic_tangent(youngs_modulus: float, poissons_ratio: float) -> np.ndarray:
+    """Mandel 6x6 matrix of isotropic linear elasticity, ``sigma = D eps``."""
+    lam, mu = lame_parameters(youngs_modulus, poissons_ratio)
+    d = 2.0 * mu * np.eye(6)
+    d[:3, :3] += lam
+    return d
+
+
+def lame_parameters(youngs_modulus: float, poissons_ratio: float) -> tuple[float, float]:
+    """(lambda, mu) from E and nu."""
+    e, nu = youngs_modulus, poissons_ratio
+    return e * nu / ((1 + nu) * (1 - 2 * nu)), e / (2 * (1 + nu))
+
+
+def von_mises(m: np.ndarray) -> np.ndarray:
+    """Von Mises equivalent stress sqrt(3/2 |dev s|) of Mandel stresses ``(6, ...)``."""
+    p = (m[0] + m[1] + m[2]) / 3.0
+    dev2 = (m[0] - p) ** 2 + (m[1] - p) ** 2 + (m[2] - p) ** 2 + np.sum(m[3:] ** 2, axis=0)
+    return np.sqrt(1.5 * dev2)
+
+
+def principal_values(m: np.ndarray) -> np.ndarray:
+    """Eigenvalues, ascending, ``(3, ...)`` of Mandel tensors ``(6, ...)``."""
+    t = tensor_from_mandel(m)
+    a = np.empty(m.shape[1:] + (3, 3))
+    for k, (i, j) in enumerate(COMPONENTS):
+        a[..., i, j] = t[k]
+        a[..., j, i] = t[k]
+    return np.moveaxis(np.linalg.eigvalsh(a), -1, 0)
