@@ -1,0 +1,149 @@
+"""Turn a case's supports and loads into arrays on a :class:`~fem_frac.fem.space.Space`.
+
+Errors name the case key they come from (``boundary_conditions[i].boundary``).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .config import schema
+from .errors import CaseError
+from .fem import loads
+from .fem.space import Space
+from .mesh.mesh import exterior_facets
+from .mesh.selection import box_facets, named_facets
+
+AXES = "xyz"
+
+
+@dataclass(frozen=True, eq=False)
+class Constraints:
+    """Prescribed displacements: dof ids ``(k,)`` (sorted, unique) and values ``(k,)``."""
+
+    dofs: np.ndarray
+    values: np.ndarray
+
+
+@dataclass(frozen=True, eq=False)
+class Problem:
+    """Everything a linear solve needs besides the stiffness.
+
+    ``reaction_groups`` maps a label (the boundary name, or ``boundary_conditions[i]``) to
+    the dofs whose reaction forces it sums.
+    """
+
+    space: Space
+    constraints: Constraints
+    external_force: np.ndarray  # (n_dofs,)
+    reaction_groups: dict[str, np.ndarray] = field(default_factory=dict)
+    descriptions: list[str] = field(default_factory=list)
+
+
+def _select(space: Space, bc, index: int, exterior: np.ndarray) -> np.ndarray:
+    mesh = space.mesh
+    if bc.boundary is not None:
+        try:
+            triples = named_facets(mesh, bc.boundary, exterior)
+        except LookupError as exc:
+            raise CaseError(("boundary_conditions", index, "boundary"), str(exc)) from None
+        key = ("boundary_conditions", index, "boundary")
+        what = f"boundary '{bc.boundary}'"
+    else:
+        triples = box_facets(mesh, bc.box.min, bc.box.max, exterior)
+        key = ("boundary_conditions", index, "box")
+        what = "the box"
+    if len(triples) == 0:
+        raise CaseError(key, f"{what} selects no boundary faces")
+    return space.facet_indices(triples)
+
+
+def _label(bc, index: int) -> str:
+    return bc.boundary if bc.boundary is not None else f"boundary_conditions[{index}]"
+
+
+def build_problem(
+    space: Space,
+    conditions: list,
+    body_force: schema.BodyForce | None,
+    density: float | None,
+) -> Problem:
+    """Constraints, external force and reaction groups of the case on ``space``.
+
+    Where two conditions prescribe the same dof, the later one wins.
+    """
+    exterior = exterior_facets(space.mesh.tets)
+    dof_chunks, value_chunks = [], []
+    force = np.zeros(space.n_dofs)
+    groups: dict[str, np.ndarray] = {}
+    described = []
+    for i, bc in enumerate(conditions):
+        facets = _select(space, bc, i, exterior)
+        if isinstance(bc, (schema.Traction, schema.Pressure)):
+            if isinstance(bc, schema.Traction):
+                force += loads.surface_load(space, facets, traction=bc.traction)
+            else:
+                force += loads.surface_load(space, facets, pressure=bc.pressure)
+            described.append(f"{bc.type} on {_label(bc, i)} ({len(facets)} faces)")
+            continue
+        nodes = loads.surface_nodes(space, facets)
+        if isinstance(bc, schema.Fixed):
+            comps = {0: 0.0, 1: 0.0, 2: 0.0}
+        elif isinstance(bc, schema.Displacement):
+            comps = {k: v for k, v in enumerate((bc.x, bc.y, bc.z)) if v is not None}
+        else:  # symmetry
+            axis = loads.mean_normal_axis(space, facets)
+            if axis is None:
+                raise CaseError(
+                    ("boundary_conditions", i, "boundary"),
+                    f"symmetry needs a plane normal to x, y or z; {_label(bc, i)} is not",
+                )
+            comps = {axis: 0.0}
+        for comp, value in comps.items():
+            dof_chunks.append(3 * nodes + comp)
+            value_chunks.append(np.full(len(nodes), value))
+        groups[_label(bc, i)] = (3 * nodes[:, None] + np.arange(3)).ravel()
+        fixed = "".join(AXES[c] for c in comps)
+        described.append(f"{bc.type} ({fixed}) on {_label(bc, i)} ({len(nodes)} nodes)")
+    if dof_chunks:
+        all_dofs = np.concatenate(dof_chunks)
+        all_values = np.concatenate(value_chunks)
+        # keep the last occurrence of each dof: unique on the reversed arrays
+        dofs, first = np.unique(all_dofs[::-1], return_index=True)
+        values = all_values[::-1][first]
+    else:
+        dofs, values = np.zeros(0, dtype=np.int64), np.zeros(0)
+    if body_force is not None:
+        force += loads.body_load(space, density * np.asarray(body_force.gravity))
+        described.append(f"gravity {tuple(body_force.gravity)}")
+    return Problem(space, Constraints(dofs, values), force, groups, described)
+
+
+def free_rigid_modes(space: Space, constrained: np.ndarray) -> list[str]:
+    """Rigid-body motions the constraints leave free (names like ``translation x``).
+
+    A static solve with any free mode is singular. Checked on the whole body: translations
+    and the rotations about the centroid, restricted to the constrained dofs.
+    """
+    x = space.node_points - space.node_points.mean(axis=0)
+    scale = np.abs(x).max() or 1.0
+    modes = np.zeros((space.n_dofs, 6))
+    for k in range(3):
+        modes[k::3, k] = 1.0
+    # rotation about axis k: velocity e_k x x
+    for k in range(3):
+        w = np.zeros(3)
+        w[k] = 1.0
+        modes[:, 3 + k] = (np.cross(w, x) / scale).ravel()
+    r = modes[constrained]
+    if r.shape[0] == 0:
+        return [f"translation {a}" for a in AXES] + [f"rotation about {a}" for a in AXES]
+    _, s, vt = np.linalg.svd(r, full_matrices=True)
+    rank = int(np.sum(s > 1e-9 * s.max()))
+    if rank == 6:
+        return []
+    free = vt[rank:]
+    names = [f"translation {a}" for a in AXES] + [f"rotation about {a}" for a in AXES]
+    return [names[int(np.argmax(np.abs(v)))] for v in free]

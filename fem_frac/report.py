@@ -1,0 +1,67 @@
+"""Text for people: the ``check`` report and the resolved copy of a case."""
+
+from __future__ import annotations
+
+import io
+
+import numpy as np
+
+from . import __version__
+from .config.loader import Source
+from .config.schema import Case
+from .driver import build_model
+from .mesh.mesh import min_dihedral_angles
+from .mesh.selection import boundary_names, named_facets
+from .plan import format_plan, make_plan
+from .timing import StageTimer
+
+# Tets with a smaller minimum dihedral angle than this are reported as poorly shaped.
+POOR_DIHEDRAL_DEG = 10.0
+
+
+def _area(points: np.ndarray, triples: np.ndarray) -> float:
+    x = points[triples]
+    return float(0.5 * np.linalg.norm(np.cross(x[:, 1] - x[:, 0], x[:, 2] - x[:, 0]), axis=1).sum())
+
+
+def check_report(case: Case, source: Source) -> str:
+    """Validate, mesh and resolve supports and loads; describe the result. No solve."""
+    timer = StageTimer()
+    model = build_model(case, source.path.parent, timer)
+    mesh, space = model.mesh, model.space
+    angles = min_dihedral_angles(mesh.points, mesh.tets)
+    lo, hi = mesh.points.min(axis=0), mesh.points.max(axis=0)
+    volume = float(space.basis.dx.sum())
+    lines = [
+        f"case        {source.path}: valid" + (f" ({case.title})" if case.title else ""),
+        f"units       {case.units}",
+        f"mesh        {mesh.n_tets:,} tets, {mesh.n_points:,} vertices, "
+        f"{space.n_nodes:,} nodes (P{space.order}), {space.n_dofs:,} dofs "
+        f"({timer.seconds['mesh']:.2f} s)",
+        f"            volume {volume:.6g}, bounding box {np.array2string(lo, precision=4)} "
+        f"to {np.array2string(hi, precision=4)}",
+        f"quality     minimum dihedral angle {angles.min():.2f} deg (median {np.median(angles):.1f}); "
+        f"{np.count_nonzero(angles < POOR_DIHEDRAL_DEG)} tets below {POOR_DIHEDRAL_DEG:g} deg",
+        "boundaries",
+    ]
+    for name in boundary_names(mesh):
+        triples = named_facets(mesh, name)
+        lines.append(f"  {name:<18} {len(triples):>8,} faces   area {_area(mesh.points, triples):.6g}")
+    lines.append("supports and loads")
+    lines += [f"  {d}" for d in model.problem.descriptions] or ["  (none)"]
+    lines.append("plan")
+    lines.append(format_plan(make_plan(case)))
+    return "\n".join(lines)
+
+
+def resolved_yaml(case: Case, source: Source) -> str:
+    """The case with every default filled in, as YAML, headed by where it came from."""
+    from ruamel.yaml import YAML
+
+    yaml = YAML(typ="safe", pure=True)
+    yaml.default_flow_style = None
+    buffer = io.StringIO()
+    yaml.dump(case.model_dump(mode="json", exclude_none=True), buffer)
+    header = [f"# resolved by fem-frac {__version__} from {source.path}"]
+    header += [f"# --set {text}" for text in source.overrides.values()]
+    return "\n".join(header) + "\n" + buffer.getvalue()
