@@ -1,0 +1,107 @@
+"""Bad input: one line naming file, line and key; exit code 2; no traceback."""
+
+import textwrap
+
+import pytest
+
+from fem_frac.cli import main
+
+BASE = textwrap.dedent(
+    """\
+    units: SI
+    mesh:
+      geometry:
+        type: box
+        lengths: [1.0, 0.5, 0.5]
+      element_size: 0.5
+      order: 1
+    material:
+      youngs_modulus: 210e9
+      poissons_ratio: 0.3
+      density: 7850
+    boundary_conditions:
+      - type: fixed
+        boundary: xmin
+      - type: traction
+        boundary: xmax
+        traction: [0, 0, -1e5]
+    """
+)
+
+
+def _edit(old: str, new: str) -> str:
+    assert old in BASE, old
+    return BASE.replace(old, new, 1)
+
+
+# (id, case text, line the message must name, key it must name, words it must contain)
+BAD = [
+    ("misspelt key", _edit("youngs_modulus: 210e9", "youngs_modulos: 210e9"), 9,
+     "material.youngs_modulos", "did you mean 'youngs_modulus'"),
+    ("wrong type", _edit("youngs_modulus: 210e9", "youngs_modulus: steel"), 9,
+     "material.youngs_modulus", "must be a number"),
+    ("E <= 0", _edit("youngs_modulus: 210e9", "youngs_modulus: -1"), 9,
+     "material.youngs_modulus", "must be > 0"),
+    ("nu = 0.5", _edit("poissons_ratio: 0.3", "poissons_ratio: 0.5"), 10,
+     "material.poissons_ratio", "must be < 0.5"),
+    ("nu <= -1", _edit("poissons_ratio: 0.3", "poissons_ratio: -1.2"), 10,
+     "material.poissons_ratio", "must be > -1"),
+    ("density <= 0", _edit("density: 7850", "density: 0"), 11,
+     "material.density", "must be > 0"),
+    ("element size <= 0", _edit("element_size: 0.5", "element_size: -0.1"), 6,
+     "mesh.element_size", "must be > 0"),
+    ("order 3", _edit("order: 1", "order: 3"), 7, "mesh.order", "must be one of 1 or 2"),
+    ("missing section", BASE.replace("material:", "materials:"), 8, "materials",
+     "did you mean 'material'"),
+    ("unknown geometry", _edit("type: box", "type: boxx"), 3, "mesh.geometry",
+     "did you mean 'box'"),
+    ("unknown condition", _edit("type: traction", "type: tracton"), 15,
+     "boundary_conditions[1]", "did you mean 'traction'"),
+    ("short vector", _edit("traction: [0, 0, -1e5]", "traction: [0, -1e5]"), 17,
+     "boundary_conditions[1].traction", "3 numbers"),
+    ("duplicate key", _edit("      density: 7850", "      density: 7850\n      density: 10"),
+     12, "", "duplicate"),
+    ("missing mesh file", _edit(
+        "  geometry:\n    type: box\n    lengths: [1.0, 0.5, 0.5]\n", "  file: nowhere.msh\n"),
+     3, "mesh.file", "no such mesh file"),
+    ("geometry and file", _edit("  element_size: 0.5", "  file: x.msh\n  element_size: 0.5"),
+     2, "mesh", "exactly one of"),
+    ("unknown boundary", _edit("boundary: xmax", "boundary: xmaks"), 16,
+     "boundary_conditions[1].boundary", "did you mean 'xmax'"),
+    ("empty box selection", _edit(
+        "boundary: xmin", "box: {min: [5, 5, 5], max: [6, 6, 6]}"), 14,
+     "boundary_conditions[0].box", "selects no boundary faces"),
+    ("YAML syntax", _edit("traction: [0, 0, -1e5]", "traction: [0, 0, -1e5"), 18, "", "YAML"),
+]
+
+
+@pytest.mark.parametrize("text,line,key,words", [b[1:] for b in BAD], ids=[b[0] for b in BAD])
+def test_bad_input_exits_2_with_located_one_line_message(tmp_path, capsys, text, line, key, words):
+    case = tmp_path / "case.yaml"
+    case.write_text(text)
+    assert main(["check", str(case)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert "Traceback" not in "\n".join(err)
+    hits = [e for e in err if f"{case}:{line}:" in e and key in e and words in e]
+    assert hits, err
+
+
+def test_base_case_is_valid(tmp_path, capsys):
+    case = tmp_path / "case.yaml"
+    case.write_text(BASE)
+    assert main(["check", str(case)]) == 0
+    out = capsys.readouterr().out
+    assert "xmin" in out and "plan" in out
+
+
+def test_bad_override_names_the_option(tmp_path, capsys):
+    case = tmp_path / "case.yaml"
+    case.write_text(BASE)
+    assert main(["check", str(case), "--set", "material.youngs_modulus=-5"]) == 2
+    err = capsys.readouterr().err
+    assert "--set material.youngs_modulus=-5" in err and "must be > 0" in err
+
+
+def test_missing_case_file(tmp_path, capsys):
+    assert main(["check", str(tmp_path / "absent.yaml")]) == 2
+    assert "absent.yaml" in capsys.readouterr().err
