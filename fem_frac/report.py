@@ -40,13 +40,15 @@ def check_report(case: Case, source: Source) -> str:
         f"({timer.seconds['mesh']:.2f} s)",
         f"            volume {volume:.6g}, bounding box {np.array2string(lo, precision=4)} "
         f"to {np.array2string(hi, precision=4)}",
-        f"quality     minimum dihedral angle {angles.min():.2f} deg (median {np.median(angles):.1f}); "
+        f"quality     minimum dihedral angle {angles.min():.2f} deg "
+        f"(median {np.median(angles):.1f}); "
         f"{np.count_nonzero(angles < POOR_DIHEDRAL_DEG)} tets below {POOR_DIHEDRAL_DEG:g} deg",
         "boundaries",
     ]
     for name in boundary_names(mesh):
         triples = named_facets(mesh, name)
-        lines.append(f"  {name:<18} {len(triples):>8,} faces   area {_area(mesh.points, triples):.6g}")
+        area = _area(mesh.points, triples)
+        lines.append(f"  {name:<18} {len(triples):>8,} faces   area {area:.6g}")
     lines.append("supports and loads")
     lines += [f"  {d}" for d in model.problem.descriptions] or ["  (none)"]
     lines.append("plan")

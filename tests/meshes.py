@@ -11,7 +11,7 @@ def structured_box(n=(4, 3, 3), lengths=(1.0, 1.0, 1.0), distortion=0.0, seed=0)
     """A box split into tets; interior vertices moved randomly by ``distortion`` of a cell."""
     from skfem import MeshTet
 
-    axes = [np.linspace(0.0, length, k + 1) for k, length in zip(n, lengths)]
+    axes = [np.linspace(0.0, length, k + 1) for k, length in zip(n, lengths, strict=True)]
     m = MeshTet.init_tensor(*axes)
     points = m.p.T.copy()
     tets = m.t.T.copy()

@@ -3,13 +3,13 @@
 import numpy as np
 import pytest
 import scipy.sparse.linalg as spla
-from meshes import structured_box
 from skfem import condense
 
 from fem_frac.fem.elasticity import internal_force, stiffness, strain, stress
 from fem_frac.fem.space import build_space
 from fem_frac.fem.tensors import isotropic_tangent, mandel_from_matrix, tensor_from_mandel
 from fem_frac.mesh import exterior_facets, tet_volumes
+from meshes import structured_box
 
 E, NU = 210e9, 0.3
 D = isotropic_tangent(E, NU)

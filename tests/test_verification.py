@@ -2,10 +2,10 @@
 
 import numpy as np
 import pytest
-from solve import solve
 
 from fem_frac.exact import cantilever_tip_deflection, lame_sphere_displacement
 from fem_frac.fem.errors import l2_error
+from solve import solve
 
 E, NU = 210e9, 0.3
 L, B, H, P = 1.0, 0.1, 0.1, 1000.0
@@ -89,7 +89,7 @@ def test_lame_sphere_converges_at_the_expected_rate(order, sizes, rate):
     Unstructured meshes are not exactly similar from one size to the next, so the fitted
     slope scatters around the asymptotic rate; accept +-0.4 of it.
     """
-    errors, hs = zip(*(lame_error(order, s) for s in sizes))
+    errors, hs = zip(*(lame_error(order, s) for s in sizes), strict=True)
     assert errors[0] > errors[1] > errors[2]
     slope = np.polyfit(np.log(hs), np.log(errors), 1)[0]
     assert abs(slope - rate) < 0.4, (slope, errors, hs)

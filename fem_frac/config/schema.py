@@ -7,7 +7,7 @@ misspelt key is an error, never silently ignored. Units are the case's consisten
 
 from __future__ import annotations
 
-from typing import Annotated, Literal, Union
+from typing import Annotated, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
@@ -82,13 +82,7 @@ class HollowCylinderGeometry(Section):
 
 
 Geometry = Annotated[
-    Union[
-        BoxGeometry,
-        CylinderGeometry,
-        SphereGeometry,
-        HollowSphereGeometry,
-        HollowCylinderGeometry,
-    ],
+    BoxGeometry | CylinderGeometry | SphereGeometry | HollowSphereGeometry | HollowCylinderGeometry,
     Field(discriminator="type"),
 ]
 
@@ -183,7 +177,7 @@ class Pressure(_Where):
 
 
 BoundaryCondition = Annotated[
-    Union[Fixed, Displacement, Symmetry, Traction, Pressure], Field(discriminator="type")
+    Fixed | Displacement | Symmetry | Traction | Pressure, Field(discriminator="type")
 ]
 
 
@@ -201,7 +195,7 @@ class StaticAnalysis(Section):
     linear_solver: Literal["auto", "pardiso", "cholmod", "superlu"] = "auto"
 
 
-Analysis = Annotated[Union[StaticAnalysis], Field(discriminator="type")]
+Analysis = Annotated[StaticAnalysis, Field(discriminator="type")]
 
 
 class Output(Section):

@@ -25,7 +25,8 @@ def named_facets(mesh: Mesh, name: str, exterior: np.ndarray | None = None) -> n
         names = boundary_names(mesh)
         close = difflib.get_close_matches(name, names, n=1)
         hint = f"did you mean '{close[0]}'? " if close else ""
-        raise LookupError(f"the mesh has no boundary '{name}' ({hint}available: {', '.join(names)})")
+        available = ", ".join(names)
+        raise LookupError(f"the mesh has no boundary '{name}' ({hint}available: {available})")
     return mesh.boundaries[name]
 
 

@@ -56,9 +56,8 @@ class SeriesWriter:
             "  <Collection>",
         ]
         for time, filename in self.entries:
-            lines.append(
-                f'    <DataSet timestep="{time:.17g}" group="" part="0" file={quoteattr(filename)}/>'
-            )
+            attrs = f'timestep="{time:.17g}" group="" part="0" file={quoteattr(filename)}'
+            lines.append(f"    <DataSet {attrs}/>")
         lines += ["  </Collection>", "</VTKFile>", ""]
         tmp = self.pvd_path.with_suffix(".pvd.tmp")
         tmp.write_text("\n".join(lines))
