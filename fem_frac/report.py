@@ -10,6 +10,7 @@ from . import __version__
 from .config.loader import Source
 from .config.schema import Case
 from .driver import build_model
+from .fem.loads import facet_basis
 from .mesh.mesh import min_dihedral_angles
 from .mesh.selection import boundary_names, named_facets
 from .plan import format_plan, make_plan
@@ -19,9 +20,9 @@ from .timing import StageTimer
 POOR_DIHEDRAL_DEG = 10.0
 
 
-def _area(points: np.ndarray, triples: np.ndarray) -> float:
-    x = points[triples]
-    return float(0.5 * np.linalg.norm(np.cross(x[:, 1] - x[:, 0], x[:, 2] - x[:, 0]), axis=1).sum())
+def _area(space, triples: np.ndarray) -> float:
+    """Area of boundary faces, curved ones included (quadrature on the facet basis)."""
+    return float(facet_basis(space, space.facet_indices(triples)).dx.sum())
 
 
 def check_report(case: Case, source: Source) -> str:
@@ -47,7 +48,7 @@ def check_report(case: Case, source: Source) -> str:
     ]
     for name in boundary_names(mesh):
         triples = named_facets(mesh, name)
-        area = _area(mesh.points, triples)
+        area = _area(space, triples)
         lines.append(f"  {name:<18} {len(triples):>8,} faces   area {area:.6g}")
     lines.append("supports and loads")
     lines += [f"  {d}" for d in model.problem.descriptions] or ["  (none)"]

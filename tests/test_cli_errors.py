@@ -59,7 +59,7 @@ BAD = [
      "boundary_conditions[1]", "did you mean 'traction'"),
     ("short vector", _edit("traction: [0, 0, -1e5]", "traction: [0, -1e5]"), 17,
      "boundary_conditions[1].traction", "3 numbers"),
-    ("duplicate key", _edit("      density: 7850", "      density: 7850\n      density: 10"),
+    ("duplicate key", _edit("  density: 7850", "  density: 7850\n  density: 10"),
      12, "", "duplicate"),
     ("missing mesh file", _edit(
         "  geometry:\n    type: box\n    lengths: [1.0, 0.5, 0.5]\n", "  file: nowhere.msh\n"),

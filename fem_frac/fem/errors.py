@@ -20,7 +20,7 @@ def l2_error(
     from skfem import CellBasis
 
     basis = CellBasis(space.skmesh, space.basis.elem, intorder=2 * space.order + extra_order)
-    phi = np.stack([b[0].value for b in basis.basis])  # (n_local, n_tets, n_qp)
+    phi = np.stack([np.asarray(b[0]) for b in basis.basis])  # (n_local, n_tets, n_qp)
     ue = u[space.element_dofs].reshape(space.mesh.n_tets, -1, 3)
     uh = np.einsum("aeq,eai->ieq", phi, ue)
     ref = exact(basis.mapping.F(basis.X))

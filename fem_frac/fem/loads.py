@@ -26,7 +26,7 @@ def surface_load(space: Space, facet_ids: np.ndarray, traction=None, pressure=No
     """Consistent nodal forces of a constant traction (force/area, ``(3,)``) and/or a
     pressure (force/area acting along the inward normal) on the given facets."""
     fb = facet_basis(space, facet_ids)
-    phi = np.stack([b[0].value for b in fb.basis])  # (n_local, n_facets, n_qp)
+    phi = np.stack([np.asarray(b[0]) for b in fb.basis])  # (n_local, n_facets, n_qp)
     t = np.zeros((3,) + fb.dx.shape)
     if traction is not None:
         t += np.asarray(traction, dtype=float)[:, None, None]
@@ -38,7 +38,7 @@ def surface_load(space: Space, facet_ids: np.ndarray, traction=None, pressure=No
 
 def body_load(space: Space, force_density) -> np.ndarray:
     """Consistent nodal forces of a constant body force (force/volume, ``(3,)``)."""
-    phi = np.stack([b[0].value for b in space.basis.basis])  # (n_local, n_tets, n_qp)
+    phi = np.stack([np.asarray(b[0]) for b in space.basis.basis])  # (n_local, n_tets, n_qp)
     w = np.einsum("aeq,eq->ea", phi, space.basis.dx)
     nodal = w[:, :, None] * np.asarray(force_density, dtype=float)
     return np.bincount(
