@@ -122,7 +122,7 @@ def _log(quiet: bool):
 
 def _run(case, source, args) -> None:
     from .driver import output_location, run_case
-    from .report import resolved_yaml
+    from .report import resolved_case, resolved_yaml
 
     out_dir, name = output_location(case, args.case, args.output)
     log = _log(args.quiet)
@@ -134,7 +134,7 @@ def _run(case, source, args) -> None:
         name,
         overwrite=args.overwrite,
         log=log,
-        resolved_yaml=resolved_yaml(case, source),
+        resolved_yaml=resolved_yaml(resolved_case(case, source, out_dir, name), source),
     )
     t = summary["wall_time_s"]
     log(f"done       max |u| = {summary['max_displacement']:.6g}, "

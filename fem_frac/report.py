@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import io
+from pathlib import Path
 
 import numpy as np
 
@@ -11,6 +12,7 @@ from .config.loader import Source
 from .config.schema import Case
 from .driver import build_model
 from .fem.loads import facet_basis
+from .mesh.build import mesh_file_path
 from .mesh.mesh import min_dihedral_angles
 from .mesh.selection import boundary_names, named_facets
 from .plan import format_plan, make_plan
@@ -57,11 +59,21 @@ def check_report(case: Case, source: Source) -> str:
     return "\n".join(lines)
 
 
+def resolved_case(case: Case, source: Source, directory: Path, name: str) -> Case:
+    """``case`` made self-contained: absolute mesh file path and the actual output place."""
+    mesh = case.mesh
+    if mesh.file is not None:
+        path = mesh_file_path(mesh, source.path.parent).resolve()
+        mesh = mesh.model_copy(update={"file": str(path)})
+    output = case.output.model_copy(update={"directory": str(directory), "name": name})
+    return case.model_copy(update={"mesh": mesh, "output": output})
+
+
 def resolved_yaml(case: Case, source: Source) -> str:
     """The case with every default filled in, as YAML, headed by where it came from."""
     from ruamel.yaml import YAML
 
-    yaml = YAML(typ="safe", pure=True)
+    yaml = YAML(typ="rt")
     yaml.default_flow_style = None
     buffer = io.StringIO()
     yaml.dump(case.model_dump(mode="json", exclude_none=True), buffer)

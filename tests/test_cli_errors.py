@@ -105,3 +105,35 @@ def test_bad_override_names_the_option(tmp_path, capsys):
 def test_missing_case_file(tmp_path, capsys):
     assert main(["check", str(tmp_path / "absent.yaml")]) == 2
     assert "absent.yaml" in capsys.readouterr().err
+
+
+def _write_mesh(path, cells):
+    import meshio
+    import numpy as np
+
+    points = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1], [1, 1, 1]], dtype=float)
+    meshio.write(path, meshio.Mesh(points, cells))
+
+
+@pytest.mark.parametrize(
+    "cells,words",
+    [
+        ([("triangle", [[0, 1, 2], [0, 1, 3]])], "no tetrahedra"),
+        # the second tet is the first one reflected: mixed orientation = inverted element
+        ([("tetra", [[0, 1, 2, 3], [1, 2, 3, 4], [0, 2, 1, 4]])], "inverted"),
+        ([("tetra", [[0, 1, 2, 3], [0, 1, 2, 0]])], "zero-volume"),
+    ],
+    ids=["no tetrahedra", "inverted", "zero volume"],
+)
+def test_unusable_mesh_file_names_the_mesh_key(tmp_path, capsys, cells, words):
+    mesh_file = tmp_path / "bad.vtu"
+    _write_mesh(mesh_file, cells)
+    text = BASE.replace(
+        "  geometry:\n    type: box\n    lengths: [1.0, 0.5, 0.5]\n", f"  file: {mesh_file}\n"
+    ).replace("boundary: xmin", "boundary: boundary").replace("boundary: xmax", "boundary: boundary")
+    case = tmp_path / "case.yaml"
+    case.write_text(text)
+    assert main(["check", str(case)]) == 2
+    err = capsys.readouterr().err
+    assert f"{case}:3:" in err and "mesh.file" in err and words in err, err
+    assert "Traceback" not in err

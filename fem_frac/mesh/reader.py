@@ -1,0 +1,251 @@
+"""Mesh files (anything meshio reads: .msh, .vtu, .vtk, .xdmf, .med, ...) -> :class:`Mesh`.
+
+Also holds the array helpers shared with :mod:`.gmsh_model` (curved edges of quadratic tets,
+boundary facets checked against the tets and turned outward). Never imports gmsh.
+
+Named groups come from, in this order:
+
+1. meshio ``cell_sets`` (gmsh 4 files put physical names there; ``gmsh:*`` sets are skipped);
+2. gmsh physical names: ``field_data`` name -> ``[tag, dim]`` with the ``gmsh:physical`` cell
+   data (used for names step 1 did not give, e.g. gmsh 2.2 files);
+3. only when neither gave a name: each integer cell-data array on triangles (tets) gives one
+   boundary (subdomain) per value, named ``<array>_<value>`` (a ``gmsh:`` prefix is dropped,
+   ``gmsh:geometrical`` is used only when no other integer array exists).
+
+Triangles (``triangle``/``triangle6``; corners only) become boundaries, tets subdomains.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import io
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import MeshError
+from .mesh import TET_FACES, Mesh, facet_keys, tet_volumes
+
+_TET_TYPES = ("tetra", "tetra10")
+_TRI_TYPES = ("triangle", "triangle6")
+# meshio's (VTK's) tetra10: corners, then mid nodes of (0,1),(1,2),(2,0),(0,3),(1,3),(2,3).
+VTK_TET10_EDGES = np.array([[0, 1], [1, 2], [2, 0], [0, 3], [1, 3], [2, 3]])
+# mid nodes closer to their edge's midpoint than this (relative to the edge length) are
+# straight and not stored
+STRAIGHT_TOL = 1e-10
+# a tet with |V| <= ZERO_VOLUME * mean |V| is degenerate
+ZERO_VOLUME = 1e-12
+
+
+def read_mesh_file(path: str | Path, order_hint: int | None = None) -> Mesh:
+    """Read a tetrahedral mesh file with meshio.
+
+    ``order_hint`` is the element order the case will use: with 1 the mid-side nodes of a
+    ``tetra10`` file are dropped (P1 sees straight tets anyway); otherwise the curved ones
+    are kept as ``Mesh.edges``/``edge_points``. Unused nodes are dropped and the rest
+    renumbered in file order. Tets that are all negatively oriented are flipped; mixed
+    orientation or zero-volume tets raise :class:`MeshError`.
+    """
+    import meshio
+
+    path = Path(path)
+    # meshio tries every format an extension may mean (.msh: ansys, then gmsh), prints each
+    # failure to stdout and calls sys.exit(1) when none works: name gmsh for .msh, capture the
+    # chatter, and turn SystemExit into a MeshError.
+    file_format = "gmsh" if path.suffix.lower() == ".msh" else None
+    chatter = io.StringIO()
+    try:
+        with contextlib.redirect_stdout(chatter), contextlib.redirect_stderr(chatter):
+            raw = meshio.read(path, file_format=file_format)
+    except (Exception, SystemExit) as exc:  # ReadError, KeyError, ValueError, SystemExit...
+        text = str(exc) if not isinstance(exc, SystemExit) else chatter.getvalue()
+        reason = " ".join(text.replace("Error:", " ").split()) or type(exc).__name__
+        raise MeshError(f"{path}: cannot read mesh file: {reason}") from None
+
+    blocks = list(raw.cells)
+    tet_blocks = [i for i, b in enumerate(blocks) if b.type in _TET_TYPES]
+    if not tet_blocks:
+        types = ", ".join(sorted({b.type for b in blocks})) or "none"
+        hint = ""
+        if file_format == "gmsh" and raw.field_data:
+            hint = (
+                "; gmsh saves only elements of physical groups: add a Physical Volume"
+                " (or set Mesh.SaveAll = 1)"
+            )
+        raise MeshError(f"{path}: no tetrahedra (cell types: {types}){hint}")
+
+    corner_nodes = np.concatenate([blocks[i].data[:, :4] for i in tet_blocks]).astype(np.int64)
+    used = np.unique(corner_nodes)
+    new_id = np.full(len(raw.points), -1, dtype=np.int64)
+    new_id[used] = np.arange(used.size)
+    xyz = np.asarray(raw.points, dtype=np.float64)
+    if xyz.shape[1] != 3:
+        raise MeshError(f"{path}: points are {xyz.shape[1]}-dimensional, expected 3")
+    points = xyz[used]
+    tets = new_id[corner_nodes]
+
+    edges = edge_points = None
+    quadratic = [i for i in tet_blocks if blocks[i].type == "tetra10"]
+    if quadratic and order_hint != 1:
+        t10 = np.concatenate([blocks[i].data for i in quadratic]).astype(np.int64)
+        edges, edge_points = curved_edges(
+            points, new_id[t10[:, :4]], xyz[t10[:, 4:]], VTK_TET10_EDGES
+        )
+
+    tets = _checked_orientation(path, points, tets)
+
+    # block index -> offset of its tets in ``tets``
+    sizes = [len(blocks[i].data) for i in tet_blocks]
+    tet_offset = dict(zip(tet_blocks, np.cumsum([0, *sizes[:-1]]), strict=True))
+    boundary_parts, subdomain_parts = _groups(raw, blocks)
+    boundaries = {}
+    for name, parts in boundary_parts.items():
+        tris = np.concatenate([blocks[i].data[rows, :3] for i, rows in parts]).astype(np.int64)
+        tris = new_id[tris]
+        if np.any(tris < 0):
+            raise MeshError(f"{path}: boundary {name!r} has vertices that are not tet corners")
+        boundaries[name] = tris
+    try:
+        boundaries = outward_boundaries(tets, len(points), boundaries)
+    except MeshError as exc:
+        raise MeshError(f"{path}: {exc}") from None
+    subdomains = {
+        name: np.unique(np.concatenate([tet_offset[i] + rows for i, rows in parts]))
+        for name, parts in subdomain_parts.items()
+    }
+    return Mesh(points, tets, boundaries, subdomains, edges, edge_points)
+
+
+# --- helpers shared with gmsh_model ------------------------------------------------------------
+
+
+def curved_edges(
+    points: np.ndarray, tets: np.ndarray, mid_points: np.ndarray, local_edges: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """Curved edges of a quadratic tet mesh.
+
+    ``points`` (n, 3) corners; ``tets`` (n_tets, 4) corner ids in the file's vertex order
+    (before any orientation flip); ``mid_points`` (n_tets, 6, 3) mid-node positions, node j
+    on the edge ``local_edges[j]`` (6, 2). Returns sorted vertex pairs (k, 2) and mid-node
+    positions (k, 3) of the edges whose mid node is off the straight edge's midpoint; the
+    first tet listing an edge decides its mid node.
+    """
+    pairs = np.sort(tets[:, local_edges].reshape(-1, 2), axis=1)
+    pairs, first = np.unique(pairs, axis=0, return_index=True)
+    mids = mid_points.reshape(-1, 3)[first]
+    a, b = points[pairs[:, 0]], points[pairs[:, 1]]
+    off = np.linalg.norm(mids - 0.5 * (a + b), axis=1)
+    curved = off > STRAIGHT_TOL * np.linalg.norm(b - a, axis=1)
+    return pairs[curved], mids[curved]
+
+
+def outward_boundaries(
+    tets: np.ndarray, n_points: int, boundaries: dict[str, np.ndarray]
+) -> dict[str, np.ndarray]:
+    """Check every boundary triangle is a tet face; orient the exterior ones outward.
+
+    ``tets`` (n_tets, 4) positively oriented; ``boundaries`` name -> (k, 3) vertex triples.
+    Facets on the exterior get the outward orientation of their tet (as
+    :func:`~fem_frac.mesh.mesh.exterior_facets`); interior ones (interfaces) keep theirs.
+    Raises :class:`MeshError` for a triangle that is no face of any tet.
+    """
+    if not boundaries:
+        return {}
+    faces = tets[:, TET_FACES].reshape(-1, 3)
+    keys = facet_keys(faces, n_points)
+    order = np.argsort(keys, kind="stable")
+    sorted_keys = keys[order]
+    last = len(sorted_keys) - 1
+    out = {}
+    for name, tris in boundaries.items():
+        wanted = facet_keys(tris, n_points)
+        pos = np.minimum(np.searchsorted(sorted_keys, wanted), last)
+        found = sorted_keys[pos] == wanted
+        if not np.all(found):
+            raise MeshError(
+                f"boundary {name!r}: {np.count_nonzero(~found)} triangles are not tet faces"
+            )
+        nxt = np.minimum(pos + 1, last)
+        exterior = (pos == last) | (sorted_keys[nxt] != wanted)
+        out[name] = np.where(exterior[:, None], faces[order[pos]], tris).astype(np.int64)
+    return out
+
+
+# --- file-specific helpers ---------------------------------------------------------------------
+
+
+def _checked_orientation(path: Path, points: np.ndarray, tets: np.ndarray) -> np.ndarray:
+    """Tets positively oriented: flip all if all are negative; refuse mixed or degenerate."""
+    v = tet_volumes(points, tets)
+    scale = np.mean(np.abs(v))
+    zero = np.abs(v) <= ZERO_VOLUME * scale
+    if np.any(zero):
+        raise MeshError(f"{path}: {_ids(zero)} zero-volume tetrahedra")
+    negative = v < 0
+    if np.all(negative):
+        return tets[:, [0, 2, 1, 3]]
+    if np.any(negative):
+        raise MeshError(f"{path}: {_ids(negative)} inverted tetrahedra (mixed orientation)")
+    return tets
+
+
+def _ids(mask: np.ndarray, shown: int = 5) -> str:
+    ids = np.flatnonzero(mask)
+    first = ", ".join(str(i) for i in ids[:shown])
+    more = ", ..." if ids.size > shown else ""
+    return f"{ids.size} of {mask.size} tets (ids from 0: {first}{more}) are"
+
+
+def _groups(raw, blocks) -> tuple[dict, dict]:
+    """Boundary and subdomain groups: name -> list of (block index, row indices)."""
+    kinds = {
+        i: ("b" if b.type in _TRI_TYPES else "s" if b.type in _TET_TYPES else None)
+        for i, b in enumerate(blocks)
+    }
+    found: dict[str, dict] = {"b": {}, "s": {}}
+
+    def add(name: str, block: int, rows: np.ndarray) -> None:
+        kind = kinds[block]
+        if kind is not None and len(rows):
+            found[kind].setdefault(name, []).append((block, np.asarray(rows, dtype=np.int64)))
+
+    for name, per_block in (raw.cell_sets or {}).items():
+        if name.startswith("gmsh:") or len(per_block) != len(blocks):
+            continue
+        for i, rows in enumerate(per_block):
+            if rows is not None:
+                add(name, i, rows)
+
+    named = set(found["b"]) | set(found["s"])
+    physical = raw.cell_data.get("gmsh:physical")
+    if physical is not None and len(physical) == len(blocks):
+        for name, value in (raw.field_data or {}).items():
+            value = np.asarray(value).ravel()
+            if name in named or value.size != 2:
+                continue
+            tag, dim = int(value[0]), int(value[1])
+            for i, tags in enumerate(physical):
+                if (kinds[i], dim) in (("b", 2), ("s", 3)):
+                    add(name, i, np.flatnonzero(np.asarray(tags) == tag))
+
+    if not (found["b"] or found["s"]):
+        arrays = {
+            k: v
+            for k, v in raw.cell_data.items()
+            if len(v) == len(blocks)
+            and all(np.issubdtype(np.asarray(a).dtype, np.integer) for a in v)
+        }
+        if len(arrays) > 1:
+            arrays.pop("gmsh:geometrical", None)
+        for array, per_block in arrays.items():
+            label = array.removeprefix("gmsh:")
+            for i, values in enumerate(per_block):
+                if kinds[i] is None:
+                    continue
+                values = np.asarray(values).ravel()
+                uniq, inverse = np.unique(values, return_inverse=True)
+                rows = np.argsort(inverse, kind="stable")
+                splits = np.cumsum(np.bincount(inverse, minlength=uniq.size))[:-1]
+                for v, r in zip(uniq, np.split(rows, splits), strict=True):
+                    add(f"{label}_{v}", i, r)
+    return found["b"], found["s"]

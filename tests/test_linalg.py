@@ -1,0 +1,118 @@
+"""Sparse direct solver layer: every available backend on a small clamped elasticity system."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import scipy.sparse as sp
+from skfem import Basis, ElementTetP1, ElementVector, MeshTet, asm, condense
+from skfem.models.elasticity import lame_parameters, linear_elasticity
+
+from fem_frac.errors import SolverError
+from fem_frac.linalg import available_methods, factorize
+
+METHODS = available_methods()
+N_RHS = 3
+
+
+@pytest.fixture(scope="module")
+def system() -> tuple[sp.csr_matrix, np.ndarray]:
+    """P1 stiffness of a 2 x 1 x 1 box of 8 x 4 x 4 cubes (768 tets, 675 dofs), unconstrained,
+    and the dofs of its face x = 0."""
+    mesh = MeshTet.init_tensor(np.linspace(0, 2, 9), np.linspace(0, 1, 5), np.linspace(0, 1, 5))
+    basis = Basis(mesh, ElementVector(ElementTetP1()), intorder=0)
+    k = asm(linear_elasticity(*lame_parameters(210e9, 0.3)), basis).tocsr()
+    return k, basis.get_dofs(lambda x: x[0] < 1e-12).all()
+
+
+@pytest.fixture(scope="module")
+def stiffness(system) -> sp.csr_matrix:
+    """The unconstrained stiffness: singular, six rigid-body modes."""
+    return system[0]
+
+
+@pytest.fixture(scope="module")
+def clamped(system) -> sp.csr_matrix:
+    """The stiffness with the face x = 0 clamped: symmetric positive definite."""
+    return condense(system[0], D=system[1], expand=False).tocsr()
+
+
+def relative_residual(a, x, b) -> float:
+    return float(np.linalg.norm(a @ x - b) / np.linalg.norm(b))
+
+
+def test_superlu_is_always_available():
+    assert "superlu" in METHODS
+
+
+@pytest.mark.parametrize("method", METHODS)
+def test_solves_vector_and_columns(clamped, method):
+    rng = np.random.default_rng(0)
+    fact = factorize(clamped, method)
+    assert fact.method == method and fact.n == clamped.shape[0] and fact.factor_time >= 0
+    b = rng.standard_normal(clamped.shape[0])
+    x = fact.solve(b)
+    assert x.shape == b.shape
+    assert relative_residual(clamped, x, b) < 1e-10
+    bb = rng.standard_normal((clamped.shape[0], N_RHS))
+    xx = fact.solve(bb)
+    assert xx.shape == bb.shape
+    assert relative_residual(clamped, xx, bb) < 1e-10
+
+
+@pytest.mark.parametrize("method", METHODS)
+def test_factorization_is_reused(clamped, method):
+    fact = factorize(clamped, method)
+    b = np.random.default_rng(1).standard_normal((clamped.shape[0], N_RHS))
+    first = fact.solve(b)
+    for column in range(N_RHS):
+        again = fact.solve(b[:, column])
+        np.testing.assert_allclose(again, first[:, column], rtol=1e-12, atol=0)
+    np.testing.assert_allclose(fact.solve(b), first, rtol=0, atol=0)
+
+
+@pytest.mark.parametrize("method", METHODS)
+def test_backends_agree(clamped, method):
+    b = np.random.default_rng(2).standard_normal(clamped.shape[0])
+    reference = factorize(clamped, "superlu").solve(b)
+    np.testing.assert_allclose(factorize(clamped, method).solve(b), reference, rtol=1e-8)
+
+
+@pytest.mark.parametrize("method", METHODS)
+def test_unconstrained_stiffness_is_singular(stiffness, method):
+    with pytest.raises(SolverError, match="singular"):
+        factorize(stiffness, method)
+
+
+@pytest.mark.parametrize("method", METHODS)
+def test_partly_constrained_stiffness_is_singular(stiffness, method):
+    # One node fixed: the three rotations about it stay free.
+    partly = condense(stiffness, D=np.arange(3), expand=False)
+    with pytest.raises(SolverError, match="singular"):
+        factorize(partly, method)
+
+
+def test_zero_diagonal_is_rejected(clamped):
+    a = clamped.tolil()
+    a[0, :] = 0.0
+    a[:, 0] = 0.0
+    with pytest.raises(SolverError, match="diagonal"):
+        factorize(a.tocsr())
+
+
+def test_unknown_method_names_available():
+    with pytest.raises(ValueError, match="superlu") as info:
+        factorize(sp.identity(3, format="csr"), "mumps")
+    assert "auto" in str(info.value)
+
+
+def test_auto_picks_first_available(clamped):
+    fact = factorize(clamped)
+    assert fact.method == METHODS[0]
+    b = np.ones(clamped.shape[0])
+    assert relative_residual(clamped, fact.solve(b), b) < 1e-10
+
+
+def test_wrong_rhs_shape(clamped):
+    with pytest.raises(ValueError, match="right-hand side"):
+        factorize(clamped, "superlu").solve(np.ones(clamped.shape[0] + 1))
