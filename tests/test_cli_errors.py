@@ -130,7 +130,8 @@ def test_unusable_mesh_file_names_the_mesh_key(tmp_path, capsys, cells, words):
     _write_mesh(mesh_file, cells)
     text = BASE.replace(
         "  geometry:\n    type: box\n    lengths: [1.0, 0.5, 0.5]\n", f"  file: {mesh_file}\n"
-    ).replace("boundary: xmin", "boundary: boundary").replace("boundary: xmax", "boundary: boundary")
+    )
+    text = text.replace("boundary: xmin", "boundary: boundary").replace("xmax", "boundary")
     case = tmp_path / "case.yaml"
     case.write_text(text)
     assert main(["check", str(case)]) == 2
