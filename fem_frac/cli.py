@@ -1,7 +1,8 @@
 """The ``fem-frac`` command: ``run`` a case, ``check`` it without solving.
 
-Exit codes: 0 success; 2 bad input (case file, mesh, options), with a one-line message and no
-traceback; 3 a numerical failure (singular system, non-finite state), output so far kept.
+Exit codes: 0 success; 2 bad input (case file, mesh, options, a body left free to move), with
+a one-line message and no traceback; 3 a numerical failure (singular system, non-finite
+state), output so far kept.
 """
 
 from __future__ import annotations

@@ -12,7 +12,7 @@ import numpy as np
 
 from . import __version__
 from .config.schema import Case
-from .errors import SolverError
+from .errors import CaseError, SolverError
 from .fem.elasticity import stiffness, strain, stress
 from .fem.space import Space, build_space
 from .fem.tensors import isotropic_tangent
@@ -77,9 +77,10 @@ def solve_static(model: Model, tangent: np.ndarray, method: str, timer: StageTim
     space, problem = model.space, model.problem
     free = free_rigid_modes(space, problem.constraints.dofs)
     if free:
-        raise SolverError(
+        raise CaseError(
+            ("boundary_conditions",),
             "the supports leave rigid-body motions free (" + ", ".join(free) + "): "
-            "a static solve is singular; add supports (fixed, displacement, symmetry)"
+            "a static solve is singular; add supports (fixed, displacement, symmetry)",
         )
     with timer("assemble"):
         k = stiffness(space, tangent)

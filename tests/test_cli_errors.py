@@ -138,3 +138,13 @@ def test_unusable_mesh_file_names_the_mesh_key(tmp_path, capsys, cells, words):
     err = capsys.readouterr().err
     assert f"{case}:3:" in err and "mesh.file" in err and words in err, err
     assert "Traceback" not in err
+
+
+def test_unsupported_body_is_refused_before_solving(tmp_path, capsys):
+    case = tmp_path / "case.yaml"
+    # symmetry on one face leaves two translations and one rotation free
+    case.write_text(_edit("type: fixed", "type: symmetry"))
+    assert main(["run", str(case), "-o", str(tmp_path / "out"), "-q"]) == 2
+    err = capsys.readouterr().err
+    assert f"{case}:12:1: boundary_conditions:" in err
+    assert "translation y" in err and "rotation about x" in err
