@@ -112,10 +112,16 @@ def run_case(
     space = model.space
     tangent = isotropic_tangent(case.material.youngs_modulus, case.material.poissons_ratio)
     u, k, factorization = solve_static(model, tangent, case.analysis.linear_solver, timer, log)
-    with timer("stress"):
+    with timer("stress"), np.errstate(over="ignore", invalid="ignore"):
         sigma = stress(tangent, strain(space, u))
         check_finite(sigma, 1, "stress", "stress")
         reactions = k @ u - model.problem.external_force
+        check_finite(reactions, 1, "stress", "reaction force")
+        magnitude = np.linalg.norm(u.reshape(-1, 3), axis=1)
+        check_finite(magnitude, 1, "stress", "displacement magnitude")
+        # linear elasticity: strain energy = half the work of all forces, reactions included
+        energy = 0.5 * u @ (model.problem.external_force + reactions)
+        check_finite(np.array([energy]), 1, "stress", "strain energy")
     with timer("output"):
         writer = SeriesWriter(out_dir, name)
         cell_data = stress_fields(space, sigma)
@@ -126,7 +132,7 @@ def run_case(
             {"displacement": u.reshape(-1, 3)},
             cell_data,
         )
-    summary = _summary(case, case_path, model, u, reactions, factorization, timer)
+    summary = _summary(case, case_path, model, magnitude, energy, reactions, factorization, timer)
     summary["output"] = {"pvd": str(writer.pvd_path), "steps": len(writer.entries)}
     (out_dir / "summary.json").write_text(json.dumps(summary, indent=2) + "\n")
     if resolved_yaml is not None:
@@ -135,9 +141,8 @@ def run_case(
     return summary
 
 
-def _summary(case, case_path, model, u, reactions, factorization, timer) -> dict:
+def _summary(case, case_path, model, magnitude, energy, reactions, factorization, timer) -> dict:
     space, problem = model.space, model.problem
-    disp = np.linalg.norm(u.reshape(-1, 3), axis=1)
     f = problem.external_force
     return {
         "case": str(case_path),
@@ -153,9 +158,8 @@ def _summary(case, case_path, model, u, reactions, factorization, timer) -> dict
             "element_order": space.order,
         },
         "linear_solver": factorization.method,
-        "max_displacement": float(disp.max()),
-        # linear elasticity: strain energy = half the work of all forces, reactions included
-        "strain_energy": float(0.5 * u @ (f + reactions)),
+        "max_displacement": float(magnitude.max()),
+        "strain_energy": float(energy),
         "reaction_force": {
             label: reactions[dofs].reshape(-1, 3).sum(axis=0).tolist()
             for label, dofs in problem.reaction_groups.items()

@@ -52,3 +52,16 @@ def test_pvd_series_opens_in_vtk(tmp_path):
     grid = reader.read()[0]
     assert "displacement" in grid.point_data and "von_mises" in grid.cell_data
     assert grid.n_cells > 0
+
+
+def test_overflowing_solution_stops_with_a_diagnostic_and_writes_no_field(tmp_path, capsys):
+    """E = 1e-300 makes |u| ~ 1e305: its norm and the energy overflow."""
+    from test_cli_errors import BASE
+
+    case = tmp_path / "broken.yaml"
+    case.write_text(BASE.replace("youngs_modulus: 210e9", "youngs_modulus: 1e-300"))
+    out = tmp_path / "out"
+    assert main(["run", str(case), "-o", str(out), "-q"]) == 3
+    err = capsys.readouterr().err
+    assert err.startswith("error:") and ("not finite" in err or "residual inf" in err)
+    assert not list(out.glob("*.vtu")) and not (out / "summary.json").exists()
