@@ -25,9 +25,9 @@ EXAMPLES = """examples:
 def _parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(
         prog="fem-frac",
-        description="Finite-element elastoplastic fracture solver on tetrahedra. "
-        "A YAML case file describes the scene; the output is a VTK time series "
-        "(.pvd + .vtu) that ParaView opens.",
+        description="Finite-element solver for elastic solids on tetrahedra (plasticity and\n"
+        "fracture to come). A YAML case file describes the scene; the output is a VTK\n"
+        "time series (.pvd + .vtu) that ParaView opens.",
         epilog=EXAMPLES,
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
