@@ -35,7 +35,7 @@ def make_plan(case: Case) -> list[Stage]:
         Stage("loads", True, loads),
         Stage("stiffness", True, "isotropic linear elasticity, assembled once"),
         Stage("mass", False, "static analysis needs no mass matrix"),
-        Stage("solve", True, f"static, linear solver {case.analysis.linear_solver}"),
+        Stage("solve", True, f"static, linear solver {_solver(case.analysis.linear_solver)}"),
         Stage("plasticity", False, "not requested"),
         Stage("fracture", False, "not requested"),
         Stage("fragments", False, "not requested"),
@@ -45,6 +45,12 @@ def make_plan(case: Case) -> list[Stage]:
             "displacement; stress, von_mises, max_principal_stress; summary.json",
         ),
     ]
+
+
+def _solver(method: str) -> str:
+    from .linalg import available_methods
+
+    return f"auto ({available_methods()[0]})" if method == "auto" else method
 
 
 def format_plan(plan: list[Stage]) -> str:
