@@ -107,8 +107,9 @@ def run_case(
 ) -> dict:
     """Run a static case end to end and write its output. Returns the summary."""
     timer = StageTimer()
-    prepare_directory(out_dir, name, overwrite)
     model = build_model(case, case_path.parent, timer, log)
+    # after validation (a bad case never touches earlier results), before the long stages
+    prepare_directory(out_dir, name, overwrite)
     space = model.space
     tangent = isotropic_tangent(case.material.youngs_modulus, case.material.poissons_ratio)
     u, k, factorization = solve_static(model, tangent, case.analysis.linear_solver, timer, log)
