@@ -1,0 +1,82 @@
+"""Radial return for von Mises plasticity with linear isotropic hardening, vectorized.
+
+All tensors are Mandel 6-vectors, components first: strain and stress ``(6, ...)``,
+tangents ``(6, 6, ...)`` (see :mod:`fem_frac.fem.tensors`); ``...`` is any batch shape,
+typically ``(n_tets, n_qp)``. Yield function f = sqrt(3/2) |dev sigma| - (sigma_Y + H alpha);
+``hardening`` H = 0 is perfect plasticity (DESIGN §2).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..fem.tensors import lame_parameters
+
+_VOL = np.array([1.0, 1.0, 1.0, 0.0, 0.0, 0.0])
+_DEV = np.eye(6) - np.outer(_VOL, _VOL) / 3.0
+
+
+@dataclass(frozen=True, eq=False)
+class PlasticState:
+    """Plastic strain ``(6, ...)`` (Mandel) and equivalent plastic strain ``(...)``."""
+
+    plastic_strain: np.ndarray
+    equivalent_plastic_strain: np.ndarray
+
+    @classmethod
+    def zeros(cls, shape: tuple) -> PlasticState:
+        return cls(np.zeros((6,) + tuple(shape)), np.zeros(tuple(shape)))
+
+
+def _batch(matrix: np.ndarray, shape: tuple) -> np.ndarray:
+    return np.broadcast_to(matrix.reshape((6, 6) + (1,) * len(shape)), (6, 6) + shape)
+
+
+def radial_return(
+    strain: np.ndarray,
+    state: PlasticState,
+    youngs_modulus: float,
+    poissons_ratio: float,
+    yield_stress: float,
+    hardening: float = 0.0,
+    tangent: bool = True,
+):
+    """One return map from the total ``strain`` and the state at the start of the step.
+
+    Returns ``(stress, new_state, algorithmic_tangent)``; the tangent (``None`` unless
+    ``tangent``) is the consistent one, ``d stress / d strain``, which gives quadratic
+    convergence of Newton's method.
+    """
+    lam, mu = lame_parameters(youngs_modulus, poissons_ratio)
+    shape = strain.shape[1:]
+    elastic = strain - state.plastic_strain
+    trace = elastic[:3].sum(axis=0)
+    trial = 2.0 * mu * elastic + lam * trace * _VOL.reshape((6,) + (1,) * len(shape))
+    dev = trial - (trial[:3].sum(axis=0) / 3.0) * _VOL.reshape((6,) + (1,) * len(shape))
+    norm = np.sqrt(np.sum(dev**2, axis=0))
+    q = np.sqrt(1.5) * norm
+    flow_stress = yield_stress + hardening * state.equivalent_plastic_strain
+    f = q - flow_stress
+    plastic = f > 0.0
+    dgamma = np.where(plastic, f, 0.0) / (3.0 * mu + hardening)
+    safe = np.where(plastic, norm, 1.0)
+    direction = dev / safe  # unit deviatoric direction N (Mandel)
+    # plastic strain increment dgamma * n, n = (3/2) s / q = sqrt(3/2) N
+    increment = np.sqrt(1.5) * dgamma * direction
+    stress = trial - 2.0 * mu * increment
+    new_state = PlasticState(
+        state.plastic_strain + increment, state.equivalent_plastic_strain + dgamma
+    )
+    if not tangent:
+        return stress, new_state, None
+    elastic_tangent = 2.0 * mu * np.eye(6) + lam * np.outer(_VOL, _VOL)
+    d = np.array(_batch(elastic_tangent, shape))
+    if np.any(plastic):
+        # C_ep = C - 2mu [3mu/(3mu+H) N(x)N + (3mu dgamma/q)(I_dev - N(x)N)]
+        nn = np.einsum("a...,b...->ab...", direction, direction)
+        ratio = np.where(plastic, 3.0 * mu * dgamma / np.where(plastic, q, 1.0), 0.0)
+        beta = np.where(plastic, 3.0 * mu / (3.0 * mu + hardening), 0.0)
+        d -= 2.0 * mu * (beta * nn + ratio * (_batch(_DEV, shape) - nn))
+    return stress, new_state, d
