@@ -17,7 +17,14 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).parent.parent / "tests"))
 
 from test_verification import (  # noqa: E402
-    B, E, H, NU, P, L, lame_error, tip_deflection,
+    NU,
+    B,
+    E,
+    H,
+    L,
+    P,
+    lame_error,
+    tip_deflection,
 )
 
 from fem_frac.exact import cantilever_tip_deflection  # noqa: E402

@@ -18,11 +18,11 @@ from .fem.space import Space, build_space
 from .fem.tensors import isotropic_tangent
 from .mesh.build import build_mesh
 from .mesh.mesh import Mesh
+from .problem import Problem, build_problem, free_rigid_modes
+from .timing import StageTimer
 from .writers.directory import prepare_directory
 from .writers.fields import stress_fields, vtk_cells
 from .writers.series import SeriesWriter
-from .problem import Problem, build_problem, free_rigid_modes
-from .timing import StageTimer
 
 Log = Callable[[str], None]
 

@@ -116,6 +116,8 @@ def build_problem(
     else:
         dofs, values = np.zeros(0, dtype=np.int64), np.zeros(0)
     if body_force is not None:
+        if density is None:
+            raise CaseError(("body_force", "gravity"), "gravity needs material.density")
         force += loads.body_load(space, density * np.asarray(body_force.gravity))
         described.append(f"gravity {tuple(body_force.gravity)}")
     return Problem(space, Constraints(dofs, values), force, groups, described)

@@ -71,6 +71,9 @@ BAD = [
     ("empty box selection", _edit(
         "boundary: xmin", "box: {min: [5, 5, 5], max: [6, 6, 6]}"), 14,
      "boundary_conditions[0].box", "selects no boundary faces"),
+    ("gravity without density",
+     _edit("  density: 7850\n", "") + "body_force:\n  gravity: [0, 0, -9.81]\n",
+     18, "body_force.gravity", "needs material.density"),
     ("YAML syntax", _edit("traction: [0, 0, -1e5]", "traction: [0, 0, -1e5"), 18, "", "YAML"),
 ]
 
