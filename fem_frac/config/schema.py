@@ -48,37 +48,32 @@ class SphereGeometry(Section):
     radius: PositiveFloat
 
 
-class HollowSphereGeometry(Section):
+class _Shell(Section):
+    inner_radius: PositiveFloat
+    outer_radius: PositiveFloat
+
+    @model_validator(mode="after")
+    def _radii(self):
+        if self.inner_radius >= self.outer_radius:
+            raise ValueError("inner_radius must be smaller than outer_radius")
+        return self
+
+
+class HollowSphereGeometry(_Shell):
     """Thick-walled sphere; ``inner outer`` (+ ``symmetry_x/y/z`` for the octant)."""
 
     type: Literal["hollow_sphere"]
     center: Vector3 = (0.0, 0.0, 0.0)
-    inner_radius: PositiveFloat
-    outer_radius: PositiveFloat
     sector: Literal["full", "octant"] = "full"
 
-    @model_validator(mode="after")
-    def _radii(self):
-        if self.inner_radius >= self.outer_radius:
-            raise ValueError("inner_radius must be smaller than outer_radius")
-        return self
 
-
-class HollowCylinderGeometry(Section):
+class HollowCylinderGeometry(_Shell):
     """Thick-walled tube along +z; ``inner outer bottom top`` (+ symmetry planes of sectors)."""
 
     type: Literal["hollow_cylinder"]
     origin: Vector3 = (0.0, 0.0, 0.0)
-    inner_radius: PositiveFloat
-    outer_radius: PositiveFloat
     height: PositiveFloat
     sector: Literal["full", "half", "quarter"] = "full"
-
-    @model_validator(mode="after")
-    def _radii(self):
-        if self.inner_radius >= self.outer_radius:
-            raise ValueError("inner_radius must be smaller than outer_radius")
-        return self
 
 
 Geometry = Annotated[
