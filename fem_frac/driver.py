@@ -4,24 +4,43 @@ from __future__ import annotations
 
 import json
 import sys
+import time
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+import scipy.sparse as sp
 
-from . import __version__
-from .config.schema import Case
-from .errors import CaseError, SolverError
-from .fem.elasticity import stiffness, strain, stress
+from . import __version__, integrators
+from .config.schema import Case, DynamicAnalysis, StaticAnalysis
+from .errors import CaseError
 from .fem.space import Space, build_space
-from .fem.tensors import isotropic_tangent
+from .integrators import Implicit
+from .loading import TimeGrid, time_grid
+from .material import MaterialLaw, material_law
 from .mesh.build import build_mesh
 from .mesh.mesh import Mesh
 from .problem import Problem, build_problem, free_rigid_modes
+from .stepping import (
+    Constrained,
+    Counters,
+    Equilibrium,
+    ExplicitStepper,
+    ImplicitStepper,
+    Ledger,
+    Observer,
+    Operators,
+    State,
+    StepInfo,
+    initial_state,
+    march,
+)
+from .timestep import ExplicitLimit, explicit_limit
 from .timing import StageTimer
 from .writers.directory import prepare_directory
-from .writers.fields import stress_fields, vtk_cells
+from .writers.fields import plastic_fields, stress_fields, vtk_cells
+from .writers.history import HistoryWriter
 from .writers.series import SeriesWriter
 
 Log = Callable[[str], None]
@@ -47,7 +66,8 @@ def build_model(case: Case, case_dir: Path, timer: StageTimer, log: Log = quiet)
         space = build_space(mesh, case.mesh.order)
     with timer("loads"):
         problem = build_problem(
-            space, case.boundary_conditions, case.body_force, case.material.density
+            space, case.boundary_conditions, case.body_force, case.material.density,
+            case.analysis, case.load_curves,
         )
     log(f"space      P{space.order}, {space.n_dofs:,} dofs")
     return Model(mesh, space, problem)
@@ -59,41 +79,147 @@ def output_location(case: Case, case_path: Path, directory: str | None) -> tuple
     return Path(chosen), name
 
 
-def check_finite(array: np.ndarray, step: int, stage: str, field: str) -> None:
-    bad = ~np.isfinite(array)
-    if np.any(bad):
-        raise SolverError(
-            f"step {step}, stage {stage}: {field} is not finite in {np.count_nonzero(bad)} "
-            f"of {array.size} entries; stopped before writing it"
-        )
+def build_operators(model: Model, case: Case, law: MaterialLaw, timer: StageTimer) -> Operators:
+    """Strain operator and elastic stiffness; mass and damping when the analysis is
+    dynamic."""
+    from .fem.operators import strain_operator
 
-
-def solve_static(model: Model, tangent: np.ndarray, method: str, timer: StageTimer, log: Log):
-    """Assemble, condense, factorize once and back-solve. Returns (u, K, factorization)."""
-    from skfem import condense
-
-    from .linalg import factorize
-
-    space, problem = model.space, model.problem
-    free = free_rigid_modes(space, problem.constraints.dofs)
-    if free:
-        raise CaseError(
-            ("boundary_conditions",),
-            "the supports leave rigid-body motions free (" + ", ".join(free) + "): "
-            "a static solve is singular; add supports (fixed, displacement, symmetry)",
-        )
+    space, analysis = model.space, case.analysis
     with timer("assemble"):
-        k = stiffness(space, tangent)
-    u = np.zeros(space.n_dofs)
-    u[problem.constraints.dofs] = problem.constraints.values
-    with timer("factorize"):
-        a, b, _, interior = condense(k, problem.external_force, x=u, D=problem.constraints.dofs)
-        factorization = factorize(a.tocsr(), method)
-    log(f"factorize  {factorization.method}, {a.shape[0]:,} unknowns")
-    with timer("solve"):
-        u[interior] = factorization.solve(b)
-    check_finite(u, 1, "solve", "displacement")
-    return u, k, factorization
+        op = strain_operator(space, case.mesh.formulation)
+        k = op.stiffness(law.elastic_tangent)
+    mass = damping = None
+    if isinstance(analysis, DynamicAnalysis):
+        from .fem.mass import consistent_mass, lumped_mass
+
+        with timer("mass"):
+            if _mass_kind(analysis) == "lumped":
+                mass = sp.diags(lumped_mass(space, case.material.density)).tocsr()
+            else:
+                mass = consistent_mass(space, case.material.density)
+            if analysis.rayleigh is not None:
+                r = analysis.rayleigh
+                damping = (r.mass * mass + r.stiffness * k).tocsr()
+    return Operators(op, k, mass, damping)
+
+
+def _mass_kind(analysis: DynamicAnalysis) -> str:
+    if analysis.mass is not None:
+        return analysis.mass
+    return "lumped" if analysis.integrator == "central_difference" else "consistent"
+
+
+def initial_velocity(space: Space, spec) -> np.ndarray | None:
+    """Nodal velocity ``(n_dofs,)`` of a uniform motion plus a rigid rotation."""
+    if spec is None:
+        return None
+    x = space.node_points
+    center = np.asarray(spec.center) if spec.center is not None else x.mean(axis=0)
+    v = np.asarray(spec.uniform) + np.cross(np.asarray(spec.angular_velocity), x - center)
+    return v.ravel()
+
+
+def scheme(analysis, dt: float) -> Implicit:
+    if isinstance(analysis, DynamicAnalysis):
+        if analysis.integrator == "hht":
+            return integrators.hht(dt, analysis.alpha)
+        return integrators.newmark(dt, analysis.beta, analysis.gamma)
+    return integrators.quasi_static(dt)
+
+
+def explicit_substeps(limit: ExplicitLimit, dt: float, allow: bool) -> int:
+    """Substeps per step for central difference; refuses ``dt`` above the limit unless
+    ``allow``."""
+    if dt <= limit.dt:
+        return 1
+    if not allow:
+        raise CaseError(
+            ("analysis", "dt"),
+            f"time step {dt:.4g} exceeds the stable step of central difference "
+            f"{limit.dt:.4g} (2/omega_max, {limit.method}); use dt <= {limit.dt:.4g}, "
+            "an implicit integrator, or substeps: true",
+        )
+    return int(np.ceil(dt / limit.dt))
+
+
+@dataclass(frozen=True, eq=False)
+class Setup:
+    """A validated case ready to step: model, law, time grid, operators and stepper."""
+
+    case: Case
+    model: Model
+    law: MaterialLaw
+    grid: TimeGrid
+    ops: Operators
+    constrained: Constrained
+    stepper: object
+    limit: ExplicitLimit | None
+
+    @property
+    def dynamic(self) -> bool:
+        return isinstance(self.case.analysis, DynamicAnalysis)
+
+
+def prepare(case: Case, case_dir: Path, timer: StageTimer, log: Log = quiet) -> Setup:
+    """Everything before the first step; every input error is raised here."""
+    analysis = case.analysis
+    model = build_model(case, case_dir, timer, log)
+    space, problem = model.space, model.problem
+    dynamic = isinstance(analysis, DynamicAnalysis)
+    explicit = dynamic and analysis.integrator == "central_difference"
+    if dynamic and case.material.density is None:
+        raise CaseError(("material", "density"), "a dynamic analysis needs material.density")
+    if not dynamic:
+        free = free_rigid_modes(space, problem.constraints.dofs)
+        if free:
+            raise CaseError(
+                ("boundary_conditions",),
+                "the supports leave rigid-body motions free (" + ", ".join(free) + "): "
+                "a static solve is singular; add supports (fixed, displacement, symmetry)",
+            )
+    law = material_law(case.material, case.plasticity)
+    grid = time_grid(analysis)
+    ops = build_operators(model, case, law, timer)
+    constrained = Constrained(problem, analysis.linear_solver)
+    limit = None
+    if explicit:
+        with timer("time step"):
+            r = analysis.rayleigh
+            limit = explicit_limit(
+                space, ops.stiffness, ops.mass.diagonal(), constrained.free,
+                case.material.youngs_modulus, case.material.poissons_ratio,
+                case.material.density, r.mass if r else 0.0, r.stiffness if r else 0.0,
+            )
+        substeps = explicit_substeps(limit, grid.dt, analysis.substeps)
+        log(f"time step  dt {grid.dt:.4g}, stable limit {limit.dt:.4g} ({limit.method})"
+            + (f", {substeps} substeps per step" if substeps > 1 else ""))
+        stepper = ExplicitStepper(problem, law, ops, grid.dt, substeps, constrained)
+    else:
+        equilibrium = Equilibrium(**analysis.equilibrium.model_dump())
+        stepper = ImplicitStepper(problem, law, ops, scheme(analysis, grid.dt), equilibrium,
+                                  constrained)
+    return Setup(case, model, law, grid, ops, constrained, stepper, limit)
+
+
+def simulate(setup: Setup, timer: StageTimer, observe: Observer, log: Log = quiet):
+    """Factorize, take every step; ``observe(n, state, ledger, info)`` sees each committed
+    step, step 0 included. Returns ``(state, ledger, counters)``."""
+    model, analysis = setup.model, setup.case.analysis
+    counters = Counters()
+    if isinstance(setup.stepper, ImplicitStepper):
+        with timer("factorize"):
+            factor = setup.stepper.elastic_factor()
+        counters.solver = factor.method
+        log(f"factorize  {factor.method}, {len(setup.constrained.free):,} unknowns")
+    with timer("initial state"):
+        v0 = initial_velocity(model.space, analysis.initial_velocity) if setup.dynamic else None
+        state = initial_state(model.problem, setup.law, setup.ops, v0, setup.constrained,
+                              analysis.linear_solver)
+    times = np.array([setup.grid.time(n) for n in range(setup.grid.steps + 1)])
+    with timer("steps"):
+        state, ledger = march(setup.stepper, state, times, model.problem, setup.law,
+                              setup.ops, observe, counters)
+    return state, ledger, counters
 
 
 def run_case(
@@ -105,36 +231,28 @@ def run_case(
     log: Log = quiet,
     resolved_yaml: str | None = None,
 ) -> dict:
-    """Run a static case end to end and write its output. Returns the summary."""
+    """Run a case end to end and write its output. Returns the summary."""
     timer = StageTimer()
-    model = build_model(case, case_path.parent, timer, log)
+    setup = prepare(case, case_path.parent, timer, log)
     # after validation (a bad case never touches earlier results), before the long stages
     prepare_directory(out_dir, name, overwrite)
-    space = model.space
-    tangent = isotropic_tangent(case.material.youngs_modulus, case.material.poissons_ratio)
-    u, k, factorization = solve_static(model, tangent, case.analysis.linear_solver, timer, log)
-    with timer("stress"), np.errstate(over="ignore", invalid="ignore"):
-        sigma = stress(tangent, strain(space, u))
-        check_finite(sigma, 1, "stress", "stress")
-        reactions = k @ u - model.problem.external_force
-        check_finite(reactions, 1, "stress", "reaction force")
-        magnitude = np.linalg.norm(u.reshape(-1, 3), axis=1)
-        check_finite(magnitude, 1, "stress", "displacement magnitude")
-        # linear elasticity: strain energy = half the work of all forces, reactions included
-        energy = 0.5 * u @ (model.problem.external_force + reactions)
-        check_finite(np.array([energy]), 1, "stress", "strain energy")
-    with timer("output"):
-        writer = SeriesWriter(out_dir, name)
-        cell_data = stress_fields(space, sigma)
-        writer.write(
-            1.0,
-            space.node_points,
-            vtk_cells(space),
-            {"displacement": u.reshape(-1, 3)},
-            cell_data,
-        )
-    summary = _summary(case, case_path, model, magnitude, energy, reactions, factorization, timer)
-    summary["output"] = {"pvd": str(writer.pvd_path), "steps": len(writer.entries)}
+    space, problem = setup.model.space, setup.model.problem
+    writer = SeriesWriter(out_dir, name)
+    output = OutputPlan(case.analysis, setup.grid.steps)
+    progress = Progress(log, setup.grid.steps)
+    with HistoryWriter(out_dir / "history.csv") as history:
+
+        def observe(n: int, st: State, ledger: Ledger, info: StepInfo) -> None:
+            history.write(history_row(n, st, ledger, info, problem, timer.total()))
+            if output.due(n):
+                with timer("output"):
+                    write_step(writer, space, st, setup.dynamic)
+            progress(n, st, info)
+
+        state, ledger, counters = simulate(setup, timer, observe, log)
+    summary = _summary(setup, case_path, state, ledger, counters, timer)
+    summary["output"] = {"pvd": str(writer.pvd_path), "steps": len(writer.entries),
+                         "history": str(out_dir / "history.csv")}
     (out_dir / "summary.json").write_text(json.dumps(summary, indent=2) + "\n")
     if resolved_yaml is not None:
         (out_dir / "case.resolved.yaml").write_text(resolved_yaml)
@@ -142,10 +260,85 @@ def run_case(
     return summary
 
 
-def _summary(case, case_path, model, magnitude, energy, reactions, factorization, timer) -> dict:
+@dataclass(frozen=True)
+class OutputPlan:
+    """Which steps are written: step 0 and every ``output_every``-th of a stepped analysis,
+    always the last; a static analysis writes its one solution."""
+
+    analysis: object
+    steps: int
+
+    def due(self, n: int) -> bool:
+        if isinstance(self.analysis, StaticAnalysis):
+            return n == self.steps
+        return n == self.steps or n % self.analysis.output_every == 0
+
+
+class Progress:
+    """A line every ~2 s of wall time, and at the end (into ``log``)."""
+
+    def __init__(self, log: Log, steps: int, every: float = 2.0):
+        self.log, self.steps, self.every = log, steps, every
+        self.last = time.perf_counter()
+
+    def __call__(self, n: int, state: State, info: StepInfo) -> None:
+        now = time.perf_counter()
+        if n == 0 or (n < self.steps and now - self.last < self.every):
+            return
+        self.last = now
+        self.log(f"step       {n}/{self.steps}  t = {state.t:.6g}  "
+                 f"iterations {info.iterations}  residual {info.residual:.1e}")
+
+
+def write_step(writer: SeriesWriter, space: Space, state: State, dynamic: bool) -> None:
+    point_data = {"displacement": state.u.reshape(-1, 3)}
+    if dynamic:
+        point_data["velocity"] = state.v.reshape(-1, 3)
+    cell_data = stress_fields(space, state.stress)
+    if state.plastic is not None:
+        cell_data.update(plastic_fields(space, state.plastic))
+    writer.write(state.t, space.node_points, vtk_cells(space), point_data, cell_data)
+
+
+def history_row(n: int, state: State, ledger: Ledger, info: StepInfo, problem: Problem,
+                wall: float) -> dict:
+    row = {
+        "step": n,
+        "time": state.t,
+        "kinetic_energy": ledger.kinetic,
+        "strain_energy": ledger.elastic,
+        "plastic_dissipation": ledger.plastic_dissipation,
+        "plastic_work": ledger.plastic_work,
+        "damping_work": ledger.damping_work,
+        "external_work": ledger.external_work,
+        "energy_error": ledger.error,
+        "energy_error_relative": ledger.relative_error,
+    }
+    full = np.zeros(problem.space.n_dofs)
+    full[problem.constraints.dofs] = state.reaction
+    for label, dofs in problem.reaction_groups.items():
+        total = full[dofs].reshape(-1, 3).sum(axis=0)
+        for axis, value in zip("xyz", total, strict=True):
+            row[f"reaction_{label}_{axis}"] = float(value)
+    row["max_displacement"] = float(np.linalg.norm(state.u.reshape(-1, 3), axis=1).max())
+    if state.plastic is not None:
+        alpha = state.plastic.equivalent_plastic_strain
+        row["yielded_points"] = int(np.count_nonzero(alpha > 0.0))
+        row["max_equivalent_plastic_strain"] = float(alpha.max())
+    else:
+        row["yielded_points"] = 0
+    row["iterations"] = info.iterations
+    row["residual"] = info.residual
+    row["wall_time"] = wall
+    return row
+
+
+def _summary(setup: Setup, case_path, state, ledger, counters, timer) -> dict:
+    case, model, grid, limit = setup.case, setup.model, setup.grid, setup.limit
     space, problem = model.space, model.problem
-    f = problem.external_force
-    return {
+    reaction = np.zeros(space.n_dofs)
+    reaction[problem.constraints.dofs] = state.reaction
+    out = {
         "case": str(case_path),
         "title": case.title,
         "fem_frac": __version__,
@@ -157,15 +350,37 @@ def _summary(case, case_path, model, magnitude, energy, reactions, factorization
             "dofs": space.n_dofs,
             "constrained_dofs": int(len(problem.constraints.dofs)),
             "element_order": space.order,
+            "formulation": case.mesh.formulation,
         },
-        "linear_solver": factorization.method,
-        "max_displacement": float(magnitude.max()),
-        "strain_energy": float(energy),
+        "analysis": {
+            "type": case.analysis.type,
+            "steps": grid.steps,
+            "dt": grid.dt,
+            "t_end": grid.t_end,
+            "iterations": counters.iterations,
+            "solves": counters.solves,
+            "factorizations": counters.factorizations + (1 if counters.solver else 0),
+            "max_relative_residual": counters.max_residual,
+            "energy_error_relative": ledger.relative_error,
+        },
+        "linear_solver": counters.solver or "none (explicit)",
+        "max_displacement": float(np.linalg.norm(state.u.reshape(-1, 3), axis=1).max()),
+        "strain_energy": ledger.elastic,
+        "kinetic_energy": ledger.kinetic,
+        "plastic_dissipation": ledger.plastic_dissipation,
         "reaction_force": {
-            label: reactions[dofs].reshape(-1, 3).sum(axis=0).tolist()
+            label: reaction[dofs].reshape(-1, 3).sum(axis=0).tolist()
             for label, dofs in problem.reaction_groups.items()
         },
-        "external_force": f.reshape(-1, 3).sum(axis=0).tolist(),
+        "external_force": problem.external_force(state.t).reshape(-1, 3).sum(axis=0).tolist(),
         "wall_time_s": {**{k: round(v, 6) for k, v in timer.seconds.items()},
                         "total": round(timer.total(), 6)},
     }
+    if limit is not None:
+        out["analysis"]["stable_time_step"] = limit.dt
+        out["analysis"]["stable_time_step_method"] = limit.method
+    if state.plastic is not None:
+        alpha = state.plastic.equivalent_plastic_strain
+        out["max_equivalent_plastic_strain"] = float(alpha.max())
+        out["yielded_points"] = int(np.count_nonzero(alpha > 0))
+    return out

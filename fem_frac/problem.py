@@ -21,25 +21,41 @@ AXES = "xyz"
 
 @dataclass(frozen=True, eq=False)
 class Constraints:
-    """Prescribed displacements: dof ids ``(k,)`` (sorted, unique) and values ``(k,)``."""
+    """Prescribed displacements: dof ids ``(k,)`` (sorted, unique), values ``(k,)`` at curve
+    factor 1 and the index ``(k,)`` of the load curve each follows."""
 
     dofs: np.ndarray
     values: np.ndarray
+    curve: np.ndarray
 
 
 @dataclass(frozen=True, eq=False)
 class Problem:
-    """Everything a linear solve needs besides the stiffness.
+    """Supports and loads as functions of time.
 
+    ``forces[c]`` is the external force ``(n_dofs,)`` that follows curve ``c``;
     ``reaction_groups`` maps a label (the boundary name, or ``boundary_conditions[i]``) to
     the dofs whose reaction forces it sums.
     """
 
     space: Space
     constraints: Constraints
-    external_force: np.ndarray  # (n_dofs,)
+    forces: np.ndarray  # (n_curves, n_dofs)
+    curves: list = field(default_factory=list)
+    curve_names: list[str] = field(default_factory=list)
     reaction_groups: dict[str, np.ndarray] = field(default_factory=dict)
     descriptions: list[str] = field(default_factory=list)
+
+    def factors(self, t: float) -> np.ndarray:
+        return np.array([c(t) for c in self.curves] or [0.0])
+
+    def external_force(self, t: float) -> np.ndarray:
+        """External force ``(n_dofs,)`` at time ``t``."""
+        return self.factors(t)[: len(self.forces)] @ self.forces
+
+    def prescribed(self, t: float) -> np.ndarray:
+        """Values ``(k,)`` of the constrained dofs at time ``t``."""
+        return self.constraints.values * self.factors(t)[self.constraints.curve]
 
 
 def _select(space: Space, bc, index: int, exterior: np.ndarray) -> np.ndarray:
@@ -69,24 +85,36 @@ def build_problem(
     conditions: list,
     body_force: schema.BodyForce | None,
     density: float | None,
+    analysis=None,
+    load_curves: dict | None = None,
 ) -> Problem:
-    """Constraints, external force and reaction groups of the case on ``space``.
+    """Constraints, external forces and reaction groups of the case on ``space``.
 
-    Where two conditions prescribe the same dof, the later one wins.
+    Where two conditions prescribe the same dof, the later one wins. ``analysis`` sets the
+    default curve and the end time of ramps (static when omitted).
     """
+    from .loading import resolve_curves
+
+    analysis = analysis if analysis is not None else schema.StaticAnalysis()
+    curve_keys = [(("boundary_conditions", i, "curve"), getattr(bc, "curve", None))
+                  for i, bc in enumerate(conditions)]
+    if body_force is not None:
+        curve_keys.append((("body_force", "curve"), body_force.curve))
+    names, curves, curve_of = resolve_curves(curve_keys, load_curves or {}, analysis)
     exterior = exterior_facets(space.mesh.tets)
-    dof_chunks, value_chunks = [], []
-    force = np.zeros(space.n_dofs)
+    dof_chunks, value_chunks, curve_chunks = [], [], []
+    forces = np.zeros((len(names), space.n_dofs))
     groups: dict[str, np.ndarray] = {}
     described = []
     for i, bc in enumerate(conditions):
         facets = _select(space, bc, i, exterior)
+        timing = f", curve {names[curve_of[i]]}" if hasattr(bc, "curve") else ""
         if isinstance(bc, (schema.Traction, schema.Pressure)):
             if isinstance(bc, schema.Traction):
-                force += loads.surface_load(space, facets, traction=bc.traction)
+                forces[curve_of[i]] += loads.surface_load(space, facets, traction=bc.traction)
             else:
-                force += loads.surface_load(space, facets, pressure=bc.pressure)
-            described.append(f"{bc.type} on {_label(bc, i)} ({len(facets)} faces)")
+                forces[curve_of[i]] += loads.surface_load(space, facets, pressure=bc.pressure)
+            described.append(f"{bc.type} on {_label(bc, i)} ({len(facets)} faces{timing})")
             continue
         nodes = loads.surface_nodes(space, facets)
         if isinstance(bc, schema.Fixed):
@@ -104,23 +132,30 @@ def build_problem(
         for comp, value in comps.items():
             dof_chunks.append(3 * nodes + comp)
             value_chunks.append(np.full(len(nodes), value))
+            curve_chunks.append(np.full(len(nodes), curve_of[i]))
         groups[_label(bc, i)] = (3 * nodes[:, None] + np.arange(3)).ravel()
         fixed = "".join(AXES[c] for c in comps)
-        described.append(f"{bc.type} ({fixed}) on {_label(bc, i)} ({len(nodes)} nodes)")
+        described.append(
+            f"{bc.type} ({fixed}) on {_label(bc, i)} ({len(nodes)} nodes{timing})"
+        )
     if dof_chunks:
         all_dofs = np.concatenate(dof_chunks)
         all_values = np.concatenate(value_chunks)
+        all_curves = np.concatenate(curve_chunks)
         # keep the last occurrence of each dof: unique on the reversed arrays
         dofs, first = np.unique(all_dofs[::-1], return_index=True)
         values = all_values[::-1][first]
+        curve = all_curves[::-1][first]
     else:
         dofs, values = np.zeros(0, dtype=np.int64), np.zeros(0)
+        curve = np.zeros(0, dtype=np.int64)
     if body_force is not None:
         if density is None:
             raise CaseError(("body_force", "gravity"), "gravity needs material.density")
-        force += loads.body_load(space, density * np.asarray(body_force.gravity))
-        described.append(f"gravity {tuple(body_force.gravity)}")
-    return Problem(space, Constraints(dofs, values), force, groups, described)
+        forces[curve_of[-1]] += loads.body_load(space, density * np.asarray(body_force.gravity))
+        described.append(f"gravity {tuple(body_force.gravity)}, curve {names[curve_of[-1]]}")
+    return Problem(space, Constraints(dofs, values, curve), forces, curves, names, groups,
+                   described)
 
 
 def free_rigid_modes(space: Space, constrained: np.ndarray) -> list[str]:

@@ -5,16 +5,20 @@ from __future__ import annotations
 from pathlib import Path
 
 from fem_frac.config.schema import Case
-from fem_frac.driver import build_model, solve_static
-from fem_frac.fem.tensors import isotropic_tangent
+from fem_frac.driver import prepare, simulate
 from fem_frac.timing import StageTimer
+
+
+def run(case_dict: dict, case_dir: Path = Path("."), observe=None):
+    """``(setup, final state, ledger, counters)`` of a case, every step seen by ``observe``."""
+    case = Case.model_validate(case_dict)
+    timer = StageTimer()
+    setup = prepare(case, case_dir, timer)
+    state, ledger, counters = simulate(setup, timer, observe or (lambda *a: None))
+    return setup, state, ledger, counters
 
 
 def solve(case_dict: dict, case_dir: Path = Path(".")):
     """(case, model, displacement) of a static case."""
-    case = Case.model_validate(case_dict)
-    timer = StageTimer()
-    model = build_model(case, case_dir, timer)
-    tangent = isotropic_tangent(case.material.youngs_modulus, case.material.poissons_ratio)
-    u, _, _ = solve_static(model, tangent, case.analysis.linear_solver, timer, lambda m: None)
-    return case, model, u
+    setup, state, _, _ = run(case_dict, case_dir)
+    return setup.case, setup.model, state.u

@@ -12,6 +12,8 @@ from typing import Annotated, Literal
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
 PositiveFloat = Annotated[float, Field(gt=0)]
+NonNegativeFloat = Annotated[float, Field(ge=0)]
+PositiveInt = Annotated[int, Field(gt=0)]
 Vector3 = tuple[float, float, float]
 PositiveVector3 = tuple[PositiveFloat, PositiveFloat, PositiveFloat]
 
@@ -90,6 +92,12 @@ class MeshSection(Section):
     file: str | None = None
     element_size: PositiveFloat | None = None
     order: Literal[1, 2] = 1
+    formulation: Literal["standard", "averaged"] = Field(
+        default="standard",
+        description="'averaged': linear tets with the volumetric strain averaged over the "
+        "elements around each vertex (B-bar), which removes volumetric locking under "
+        "isochoric plastic flow and near-incompressibility; order 1 only",
+    )
 
     @model_validator(mode="after")
     def _one_source(self):
@@ -97,6 +105,9 @@ class MeshSection(Section):
             raise ValueError("give exactly one of 'geometry' or 'file'")
         if self.geometry is not None and self.element_size is None:
             raise ValueError("'element_size' is required to mesh a geometry")
+        if self.formulation == "averaged" and self.order != 1:
+            raise ValueError("formulation 'averaged' is for linear tets (order 1); "
+                             "quadratic tets do not lock")
         return self
 
 
@@ -107,6 +118,70 @@ class Material(Section):
     youngs_modulus: PositiveFloat
     poissons_ratio: Annotated[float, Field(gt=-1.0, lt=0.5)]
     density: PositiveFloat | None = None
+
+
+class Plasticity(Section):
+    """Von Mises plasticity, associative, with linear isotropic hardening (``hardening`` H = 0:
+    perfectly plastic). The flow stress is ``yield_stress + hardening * alpha``, alpha the
+    equivalent plastic strain."""
+
+    model: Literal["von_mises"] = "von_mises"
+    yield_stress: PositiveFloat
+    hardening: NonNegativeFloat = 0.0
+
+
+# --- load curves --------------------------------------------------------------------------
+
+
+class RampCurve(Section):
+    """0 until ``t_start``, linear to ``value`` at ``t_end`` (default: the end of the
+    analysis), then held."""
+
+    type: Literal["ramp"]
+    t_start: NonNegativeFloat = 0.0
+    t_end: PositiveFloat | None = None
+    value: float = 1.0
+
+    @model_validator(mode="after")
+    def _order(self):
+        if self.t_end is not None and self.t_end <= self.t_start:
+            raise ValueError("t_end must be later than t_start")
+        return self
+
+
+class ConstantCurve(Section):
+    """``value`` at every time (a load applied at once)."""
+
+    type: Literal["constant"]
+    value: float = 1.0
+
+
+class TableCurve(Section):
+    """Piecewise linear through ``points`` ``[[t, factor], ...]`` (times increasing); held at
+    the first and last factor outside them."""
+
+    type: Literal["table"]
+    points: list[tuple[float, float]] = Field(min_length=1)
+
+    @model_validator(mode="after")
+    def _increasing(self):
+        times = [t for t, _ in self.points]
+        if any(b <= a for a, b in zip(times, times[1:], strict=False)):
+            raise ValueError("the times of 'points' must increase")
+        return self
+
+
+LoadCurve = Annotated[RampCurve | ConstantCurve | TableCurve, Field(discriminator="type")]
+# A condition's ``curve`` names an entry of ``load_curves`` or one of these.
+BUILTIN_CURVES = ("ramp", "constant")
+CurveName = Annotated[
+    str,
+    Field(
+        description="a name in load_curves, or 'ramp' (0 to 1 over the analysis) or "
+        "'constant' (1 throughout); default: constant for static and dynamic analyses, ramp "
+        "for quasi-static ones"
+    ),
+]
 
 
 # --- boundary conditions ------------------------------------------------------------------
@@ -143,6 +218,7 @@ class Displacement(_Where):
     x: float | None = None
     y: float | None = None
     z: float | None = None
+    curve: CurveName | None = None
 
     @model_validator(mode="after")
     def _some_component(self):
@@ -162,6 +238,7 @@ class Traction(_Where):
 
     type: Literal["traction"]
     traction: Vector3
+    curve: CurveName | None = None
 
 
 class Pressure(_Where):
@@ -169,6 +246,7 @@ class Pressure(_Where):
 
     type: Literal["pressure"]
     pressure: float
+    curve: CurveName | None = None
 
 
 BoundaryCondition = Annotated[
@@ -180,17 +258,118 @@ class BodyForce(Section):
     """Gravitational acceleration (m/s^2); needs ``material.density``."""
 
     gravity: Vector3
+    curve: CurveName | None = None
 
 
 # --- analysis and output ------------------------------------------------------------------
 
 
+LinearSolver = Literal["auto", "pardiso", "cholmod", "superlu"]
+
+
+class Equilibrium(Section):
+    """How each step reaches equilibrium when the material is nonlinear.
+
+    ``modified_newton``: iterate with the elastic matrix factorized once (initial stiffness);
+    ``newton``: the consistent tangent, reassembled and refactorized every iteration;
+    ``single_pass``: one solve per step, the return map after it, no iteration (the residual
+    left is reported, not reduced). ``tolerance`` bounds the residual norm relative to the
+    largest force norm of the step.
+    """
+
+    method: Literal["modified_newton", "newton", "single_pass"] = "modified_newton"
+    tolerance: PositiveFloat = 1e-8
+    max_iterations: PositiveInt = 200
+
+
 class StaticAnalysis(Section):
+    """One solve with every load at its value at t = 1."""
+
     type: Literal["static"] = "static"
-    linear_solver: Literal["auto", "pardiso", "cholmod", "superlu"] = "auto"
+    linear_solver: LinearSolver = "auto"
+    equilibrium: Equilibrium = Equilibrium()
 
 
-Analysis = Annotated[StaticAnalysis, Field(discriminator="type")]
+class _Stepped(Section):
+    t_end: PositiveFloat | None = None
+    dt: PositiveFloat | None = None
+    steps: PositiveInt | None = Field(default=None, description="number of time steps")
+    output_every: PositiveInt = Field(default=1, description="write every n-th step")
+    linear_solver: LinearSolver = "auto"
+    equilibrium: Equilibrium = Equilibrium()
+
+    def _check_times(self, default_end: float | None):
+        given = [k for k in ("t_end", "dt", "steps") if getattr(self, k) is not None]
+        if self.t_end is None and default_end is not None and len(given) < 2:
+            given.append("t_end")
+        if len(given) != 2:
+            raise ValueError("give two of 't_end', 'dt' and 'steps'")
+        return self
+
+
+class QuasiStaticAnalysis(_Stepped):
+    """Load stepping without inertia; loads follow their curves over ``[0, t_end]``
+    (default t_end = 1, so time reads as the load factor)."""
+
+    type: Literal["quasi_static"]
+
+    @model_validator(mode="after")
+    def _times(self):
+        return self._check_times(default_end=1.0)
+
+
+class RayleighDamping(Section):
+    """C = mass M + stiffness K (elastic stiffness)."""
+
+    mass: NonNegativeFloat = 0.0
+    stiffness: NonNegativeFloat = 0.0
+
+
+class InitialVelocity(Section):
+    """v0(x) = uniform + angular_velocity x (x - center); center default: the centroid."""
+
+    uniform: Vector3 = (0.0, 0.0, 0.0)
+    angular_velocity: Vector3 = (0.0, 0.0, 0.0)
+    center: Vector3 | None = None
+
+
+class DynamicAnalysis(_Stepped):
+    """Transient dynamics. ``newmark``: implicit, average acceleration by default (beta 1/4,
+    gamma 1/2: no numerical damping); ``hht``: implicit HHT-alpha, ``alpha`` in [-1/3, 0]
+    damps high frequencies (beta, gamma follow from alpha); ``central_difference``: explicit,
+    lumped mass, dt limited by the critical step (refused above it unless ``substeps``)."""
+
+    type: Literal["dynamic"]
+    integrator: Literal["newmark", "hht", "central_difference"] = "newmark"
+    beta: PositiveFloat | None = Field(default=None, description="Newmark beta; default 1/4")
+    gamma: PositiveFloat | None = Field(default=None, description="Newmark gamma; default 1/2")
+    alpha: Annotated[float, Field(ge=-1.0 / 3.0, le=0.0)] = -0.05
+    mass: Literal["consistent", "lumped"] | None = Field(
+        default=None, description="default: consistent (implicit), lumped (explicit)"
+    )
+    rayleigh: RayleighDamping | None = None
+    initial_velocity: InitialVelocity | None = None
+    substeps: bool = Field(
+        default=False,
+        description="explicit only: split each step into enough substeps to stay below "
+        "the critical time step instead of refusing",
+    )
+
+    @model_validator(mode="after")
+    def _consistent(self):
+        self._check_times(default_end=None)
+        if self.integrator == "central_difference" and self.mass == "consistent":
+            raise ValueError("central_difference needs the lumped mass")
+        if self.integrator != "newmark" and (self.beta is not None or self.gamma is not None):
+            raise ValueError(f"beta and gamma are for newmark; {self.integrator} sets its own")
+        if self.gamma is not None and self.gamma < 0.5:
+            raise ValueError("gamma < 1/2 adds energy (unstable); use gamma >= 1/2")
+        return self
+
+
+Analysis = Annotated[
+    StaticAnalysis | QuasiStaticAnalysis | DynamicAnalysis, Field(discriminator="type")
+]
 
 
 class Output(Section):
@@ -212,5 +391,7 @@ class Case(Section):
     material: Material
     boundary_conditions: list[BoundaryCondition] = []
     body_force: BodyForce | None = None
+    plasticity: Plasticity | None = None
+    load_curves: dict[str, LoadCurve] = {}
     analysis: Analysis = StaticAnalysis()
     output: Output = Output()

@@ -7,7 +7,10 @@ from pathlib import Path
 from ..errors import FemFracError
 
 # What a run writes; ``--overwrite`` removes exactly these, nothing else.
-OWNED = ("{name}.pvd", "{name}.pvd.tmp", "{name}_*.vtu", "summary.json", "case.resolved.yaml")
+OWNED = (
+    "{name}.pvd", "{name}.pvd.tmp", "{name}_*.vtu", "summary.json", "case.resolved.yaml",
+    "history.csv",
+)
 
 
 def prepare_directory(directory: Path, name: str, overwrite: bool) -> Path:

@@ -26,6 +26,17 @@ def stress_fields(space: Space, stress: np.ndarray) -> dict[str, np.ndarray]:
     }
 
 
+def plastic_fields(space: Space, state) -> dict[str, np.ndarray]:
+    """Cell data of a plastic state: ``plastic_strain`` (6 tensor components, VTK order) and
+    ``equivalent_plastic_strain``."""
+    mean = cell_average(space, state.plastic_strain)
+    alpha = cell_average(space, state.equivalent_plastic_strain[None])[0]
+    return {
+        "plastic_strain": np.ascontiguousarray(tensor_from_mandel(mean).T),
+        "equivalent_plastic_strain": alpha,
+    }
+
+
 def vtk_cells(space: Space) -> tuple[str, np.ndarray]:
     """Cells for output: linear tets, or quadratic tets whose nodes are the P2 nodes.
 

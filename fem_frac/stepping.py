@@ -1,0 +1,369 @@
+"""The step loop: march a model through time, reaching equilibrium in every step.
+
+One implicit form covers static, quasi-static and implicit dynamic steps (see
+:mod:`fem_frac.integrators`); explicit central difference has its own update. Each step
+evaluates the material law at every quadrature point through a strain operator built once,
+and solves with a matrix factorized once per topology unless full Newton asks for the
+consistent tangent.
+
+Energy bookkeeping (trapezoidal work of every force, reactions included) makes the balance
+
+    kinetic + elastic + plastic work + damping work - external work = initial energy
+
+exact for Newmark average acceleration at converged equilibrium (any material), and a
+measure of numerical dissipation for HHT and of O(dt^2) error for central difference.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+import scipy.sparse as sp
+
+from .errors import SolverError
+from .integrators import Implicit
+from .linalg import factorize
+from .material import MaterialLaw
+from .plasticity.return_map import PlasticState
+from .problem import Problem
+
+
+@dataclass(frozen=True, eq=False)
+class Operators:
+    """What one topology provides: the strain operator (``strain``, ``internal_force``,
+    ``stiffness``), the elastic stiffness, and the mass and damping matrices when there is
+    inertia (``mass`` a sparse matrix, consistent or diagonal)."""
+
+    strain_operator: object
+    stiffness: sp.csr_matrix
+    mass: sp.csr_matrix | None = None
+    damping: sp.csr_matrix | None = None
+
+    @property
+    def weights(self) -> np.ndarray:
+        return self.strain_operator.weights
+
+
+@dataclass(frozen=True, eq=False)
+class State:
+    """Committed state at time ``t``. Vectors are ``(n_dofs,)``; ``stress`` Mandel
+    ``(6, n_tets, n_qp)``; ``reaction`` is the support force on the constrained dofs
+    ``(k,)``."""
+
+    t: float
+    u: np.ndarray
+    v: np.ndarray
+    a: np.ndarray
+    stress: np.ndarray
+    plastic: PlasticState | None
+    internal_force: np.ndarray
+    reaction: np.ndarray
+
+
+@dataclass(frozen=True)
+class Ledger:
+    """Energies at the current step; works accumulated from t = 0."""
+
+    kinetic: float = 0.0
+    elastic: float = 0.0
+    hardening: float = 0.0
+    plastic_work: float = 0.0
+    damping_work: float = 0.0
+    external_work: float = 0.0
+    initial: float = 0.0
+    scale: float = 0.0
+
+    @property
+    def error(self) -> float:
+        """kinetic + elastic + plastic work + damping work - external work - initial."""
+        return (self.kinetic + self.elastic + self.plastic_work + self.damping_work
+                - self.external_work - self.initial)
+
+    @property
+    def relative_error(self) -> float:
+        return abs(self.error) / self.scale if self.scale > 0 else 0.0
+
+    @property
+    def plastic_dissipation(self) -> float:
+        """Plastic work less the energy stored by hardening."""
+        return self.plastic_work - self.hardening
+
+
+@dataclass(frozen=True)
+class StepInfo:
+    iterations: int
+    residual: float
+    solves: int = 0
+    factorizations: int = 0
+
+
+@dataclass(frozen=True)
+class Equilibrium:
+    method: str = "modified_newton"
+    tolerance: float = 1e-8
+    max_iterations: int = 200
+
+
+@dataclass
+class Counters:
+    steps: int = 0
+    iterations: int = 0
+    solves: int = 0
+    factorizations: int = 0
+    max_residual: float = 0.0
+    solver: str = ""
+    seconds: dict = field(default_factory=dict)
+
+
+def check_finite(array: np.ndarray, step: int, stage: str, name: str) -> None:
+    """Stop at once when ``array`` holds NaN or Inf, naming step, stage and field."""
+    bad = ~np.isfinite(array)
+    if np.any(bad):
+        raise SolverError(
+            f"step {step}, stage {stage}: {name} is not finite in {np.count_nonzero(bad)} "
+            f"of {array.size} entries; stopped before writing it"
+        )
+
+
+class Constrained:
+    """Free/constrained split of the dofs and factorizations of matrices restricted to the
+    free dofs."""
+
+    def __init__(self, problem: Problem, method: str):
+        n = problem.space.n_dofs
+        self.dofs = problem.constraints.dofs
+        mask = np.ones(n, dtype=bool)
+        mask[self.dofs] = False
+        self.free = np.flatnonzero(mask)
+        self.method = method
+
+    def factorize(self, matrix: sp.csr_matrix):
+        sub = matrix[self.free][:, self.free].tocsr()
+        return factorize(sub, self.method)
+
+
+def initial_state(problem: Problem, law: MaterialLaw, ops: Operators, v0: np.ndarray | None,
+                  constrained: Constrained, method: str) -> State:
+    """State at t = 0: at rest in the reference configuration (or moving with ``v0``), with
+    the acceleration that balances the loads at t = 0 when there is mass."""
+    n = problem.space.n_dofs
+    u = np.zeros(n)
+    u[problem.constraints.dofs] = problem.prescribed(0.0)
+    shape = ops.weights.shape
+    strain = ops.strain_operator.strain(u)
+    stress, plastic, _ = law.update(strain, law.initial_state(shape))
+    f_int = ops.strain_operator.internal_force(stress)
+    v = np.zeros(n) if v0 is None else v0.copy()
+    a = np.zeros(n)
+    f_ext = problem.external_force(0.0)
+    unbalanced = f_ext - f_int - (ops.damping @ v if ops.damping is not None else 0.0)
+    if ops.mass is not None and np.any(unbalanced[constrained.free]):
+        solver = constrained.factorize(ops.mass)
+        a[constrained.free] = solver.solve(unbalanced[constrained.free])
+    reaction = (f_int - f_ext)[constrained.dofs]
+    if ops.mass is not None:
+        reaction = reaction + (ops.mass @ a + (ops.damping @ v if ops.damping is not None
+                                               else 0.0))[constrained.dofs]
+    return State(0.0, u, v, a, stress, plastic, f_int, reaction)
+
+
+def initial_ledger(state: State, law: MaterialLaw, ops: Operators) -> Ledger:
+    kinetic = 0.5 * state.v @ (ops.mass @ state.v) if ops.mass is not None else 0.0
+    elastic = law.elastic_energy(state.stress, ops.weights)
+    total = kinetic + elastic
+    return Ledger(kinetic=kinetic, elastic=elastic, initial=total, scale=abs(total))
+
+
+def _full_force(problem: Problem, t: float, reaction: np.ndarray) -> np.ndarray:
+    f = problem.external_force(t)
+    f[problem.constraints.dofs] += reaction
+    return f
+
+
+def account(ledger: Ledger, old: State, new: State, problem: Problem, law: MaterialLaw,
+            ops: Operators) -> Ledger:
+    """The ledger after the step ``old -> new`` (trapezoidal works)."""
+    du = new.u - old.u
+    f_old = _full_force(problem, old.t, old.reaction)
+    f_new = _full_force(problem, new.t, new.reaction)
+    external = ledger.external_work + 0.5 * (f_old + f_new) @ du
+    damping = ledger.damping_work
+    if ops.damping is not None:
+        damping += 0.5 * (ops.damping @ (old.v + new.v)) @ du
+    plastic_work = ledger.plastic_work
+    if new.plastic is not None:
+        dep = new.plastic.plastic_strain - old.plastic.plastic_strain
+        plastic_work += 0.5 * float(np.sum(np.sum((old.stress + new.stress) * dep, axis=0)
+                                           * ops.weights))
+    kinetic = 0.5 * new.v @ (ops.mass @ new.v) if ops.mass is not None else 0.0
+    elastic = law.elastic_energy(new.stress, ops.weights)
+    hardening = law.hardening_energy(new.plastic, ops.weights)
+    stored = kinetic + elastic + plastic_work + abs(damping)
+    scale = max(ledger.scale, stored, abs(external))
+    return Ledger(kinetic, elastic, hardening, plastic_work, damping, external,
+                  ledger.initial, scale)
+
+
+class ImplicitStepper:
+    """Steps of the implicit form (static, quasi-static, Newmark, HHT-alpha).
+
+    ``modified_newton`` and ``single_pass`` solve with the elastic Jacobian factorized here,
+    once; ``newton`` refactorizes the consistent tangent every iteration.
+    """
+
+    def __init__(self, problem: Problem, law: MaterialLaw, ops: Operators, scheme: Implicit,
+                 equilibrium: Equilibrium, constrained: Constrained):
+        self.problem, self.law, self.ops = problem, law, ops
+        self.scheme, self.equilibrium, self.constrained = scheme, equilibrium, constrained
+        self.elastic_jacobian = self.jacobian(ops.stiffness)
+        self.factor = None  # elastic Jacobian's factorization, made on first use
+        self.factorizations = 0
+
+    def jacobian(self, stiffness: sp.csr_matrix) -> sp.csr_matrix:
+        s, ops = self.scheme, self.ops
+        j = (1.0 + s.alpha) * stiffness
+        if ops.mass is not None and s.inertia:
+            j = j + s.c_mass * ops.mass
+            if ops.damping is not None:
+                j = j + (1.0 + s.alpha) * s.c_damping * ops.damping
+        return j.tocsr()
+
+    def elastic_factor(self):
+        if self.factor is None:
+            self.factor = self.constrained.factorize(self.elastic_jacobian)
+            self.factorizations += 1
+        return self.factor
+
+    def step(self, old: State, t: float, step: int) -> tuple[State, StepInfo]:
+        problem, law, ops, s = self.problem, self.law, self.ops, self.scheme
+        free, fixed = self.constrained.free, self.constrained.dofs
+        method = self.equilibrium.method
+        inertia = ops.mass is not None and s.inertia
+        alpha = s.alpha
+        f_ext = (1.0 + alpha) * problem.external_force(t)
+        damp_old = ops.damping @ old.v if (ops.damping is not None and inertia) else 0.0
+        if alpha:
+            f_ext = f_ext - alpha * problem.external_force(old.t)
+        history = alpha * (damp_old + old.internal_force) if alpha else 0.0
+        u_pred, v_pred = s.predict(old.u, old.v, old.a) if inertia else (old.u, old.v)
+
+        u = old.u.copy()
+        u[fixed] = problem.prescribed(t)
+        factor = self.elastic_factor()
+        solves = factorizations = 0
+        # First iterate: linearize the internal force about the committed state with the
+        # elastic stiffness (exact when the step stays elastic), so a step that needs no
+        # extra iteration costs one solve and one return map.
+        f_int = old.internal_force + ops.stiffness @ (u - old.u)
+        stress, plastic = old.stress, old.plastic
+        iterations, relative = 0, np.inf
+        while True:
+            v, a = s.rates(u, u_pred, v_pred) if inertia else (old.v, old.a)
+            inertial = ops.mass @ a if inertia else 0.0
+            damping = ops.damping @ v if (ops.damping is not None and inertia) else 0.0
+            residual = f_ext - inertial - (1.0 + alpha) * (damping + f_int) + history
+            if iterations > 0:
+                check_finite(residual, step, "equilibrium", "residual force")
+                scale = max(np.linalg.norm(f_ext), np.linalg.norm((1.0 + alpha) * f_int),
+                            np.linalg.norm(inertial), 1e-300)
+                relative = float(np.linalg.norm(residual[free]) / scale)
+                if relative <= self.equilibrium.tolerance or method == "single_pass":
+                    break
+                if iterations >= self.equilibrium.max_iterations:
+                    raise SolverError(
+                        f"step {step} (t = {t:.6g}): equilibrium not reached in {iterations} "
+                        f"iterations of {method} (relative residual {relative:.2e} > "
+                        f"tolerance {self.equilibrium.tolerance:g}); take smaller steps, "
+                        "or use analysis.equilibrium.method: newton"
+                    )
+            du = factor.solve(residual[free])
+            solves += 1
+            u[free] += du
+            check_finite(u, step, "solve", "displacement")
+            strain = ops.strain_operator.strain(u)
+            stress, plastic, tangent = law.update(strain, old.plastic,
+                                                  tangent=(method == "newton"))
+            check_finite(stress, step, "return map", "stress")
+            f_int = ops.strain_operator.internal_force(stress)
+            iterations += 1
+            if method == "newton" and law.plastic:
+                factor = self.constrained.factorize(
+                    self.jacobian(ops.strain_operator.stiffness(tangent)))
+                factorizations += 1
+        v, a = s.rates(u, u_pred, v_pred) if inertia else (np.zeros_like(u), np.zeros_like(u))
+        reaction = (f_int - problem.external_force(t))[fixed]
+        if inertia:
+            reaction = reaction + (ops.mass @ a)[fixed]
+            if ops.damping is not None:
+                reaction = reaction + (ops.damping @ v)[fixed]
+        new = State(t, u, v, a, stress, plastic, f_int, reaction)
+        return new, StepInfo(iterations, relative, solves, factorizations)
+
+
+class ExplicitStepper:
+    """Central difference (velocity Verlet) with a lumped (diagonal) mass; no solve.
+
+    Damping uses the half-step velocity. Prescribed dofs follow their curves, with the
+    velocity of the prescribed motion and zero acceleration.
+    """
+
+    def __init__(self, problem: Problem, law: MaterialLaw, ops: Operators, dt: float,
+                 substeps: int, constrained: Constrained):
+        self.problem, self.law, self.ops = problem, law, ops
+        self.dt, self.substeps, self.constrained = dt, substeps, constrained
+        self.inverse_mass = 1.0 / ops.mass.diagonal()
+
+    def step(self, old: State, t: float, step: int) -> tuple[State, StepInfo]:
+        problem, ops, law = self.problem, self.ops, self.law
+        fixed = self.constrained.dofs
+        h = (t - old.t) / self.substeps
+        state = old
+        for k in range(1, self.substeps + 1):
+            t_k = old.t + k * h
+            v_half = state.v + 0.5 * h * state.a
+            u = state.u + h * v_half
+            u[fixed] = problem.prescribed(t_k)
+            v_half[fixed] = (u[fixed] - state.u[fixed]) / h
+            check_finite(u, step, "explicit update", "displacement")
+            stress, plastic, _ = law.update(ops.strain_operator.strain(u), state.plastic)
+            check_finite(stress, step, "return map", "stress")
+            f_int = ops.strain_operator.internal_force(stress)
+            f_ext = problem.external_force(t_k)
+            damping = ops.damping @ v_half if ops.damping is not None else 0.0
+            force = f_ext - f_int - damping
+            a = force * self.inverse_mass
+            a[fixed] = 0.0
+            v = v_half + 0.5 * h * a
+            reaction = -force[fixed]
+            state = State(t_k, u, v, a, stress, plastic, f_int, reaction)
+        return state, StepInfo(self.substeps, 0.0)
+
+
+Observer = Callable[[int, State, Ledger, StepInfo], None]
+
+
+def march(stepper, state: State, times: np.ndarray, problem: Problem, law: MaterialLaw,
+          ops: Operators, observe: Observer, counters: Counters) -> tuple[State, Ledger]:
+    """Take the steps to ``times[1:]``; ``observe`` sees every committed step (and step 0)."""
+    ledger = initial_ledger(state, law, ops)
+    observe(0, state, ledger, StepInfo(0, 0.0))
+    for n in range(1, len(times)):
+        t0 = time.perf_counter()
+        new, info = stepper.step(state, float(times[n]), n)
+        ledger = account(ledger, state, new, problem, law, ops)
+        state = new
+        counters.steps += 1
+        counters.iterations += info.iterations
+        counters.solves += info.solves
+        counters.factorizations += info.factorizations
+        counters.max_residual = max(counters.max_residual, info.residual)
+        counters.seconds["steps"] = counters.seconds.get("steps", 0.0) + time.perf_counter() - t0
+        observe(n, state, ledger, info)
+    return state, ledger
+
+
+def with_time(state: State, t: float) -> State:
+    return replace(state, t=t)
