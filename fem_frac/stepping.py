@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 
 import numpy as np
 import scipy.sparse as sp
@@ -157,6 +157,7 @@ def initial_state(problem: Problem, law: MaterialLaw, ops: Operators, v0: np.nda
     stress, plastic, _ = law.update(strain, law.initial_state(shape))
     f_int = ops.strain_operator.internal_force(stress)
     v = np.zeros(n) if v0 is None else v0.copy()
+    v[constrained.dofs] = 0.0  # supports start at rest
     a = np.zeros(n)
     f_ext = problem.external_force(0.0)
     unbalanced = f_ext - f_int - (ops.damping @ v if ops.damping is not None else 0.0)
@@ -364,6 +365,3 @@ def march(stepper, state: State, times: np.ndarray, problem: Problem, law: Mater
         observe(n, state, ledger, info)
     return state, ledger
 
-
-def with_time(state: State, t: float) -> State:
-    return replace(state, t=t)
