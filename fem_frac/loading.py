@@ -1,8 +1,9 @@
 """Load curves and the time grid: when each load and prescribed displacement acts, how much.
 
 A curve is a scalar factor of time multiplying a condition's value. Conditions without a
-``curve`` follow the analysis default: ``constant`` for static and dynamic analyses (the
-load is on from the start), ``ramp`` for quasi-static ones (0 to full over the analysis).
+``curve`` follow the analysis default: ``constant`` for dynamic analyses (the load is on from
+the start), ``ramp`` for static and quasi-static ones (0 to full over the analysis; a static
+analysis is one step to t = 1, so its loads do the work of a slowly applied load).
 """
 
 from __future__ import annotations
@@ -48,7 +49,7 @@ def time_grid(analysis) -> TimeGrid:
 
 
 def default_curve(analysis) -> str:
-    return "ramp" if isinstance(analysis, schema.QuasiStaticAnalysis) else "constant"
+    return "constant" if isinstance(analysis, schema.DynamicAnalysis) else "ramp"
 
 
 def make_curve(curve: schema.RampCurve | schema.ConstantCurve | schema.TableCurve,

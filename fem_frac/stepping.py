@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 import scipy.sparse as sp
@@ -308,7 +308,8 @@ class ExplicitStepper:
     """Central difference (velocity Verlet) with a lumped (diagonal) mass; no solve.
 
     Damping uses the half-step velocity. Prescribed dofs follow their curves, with the
-    velocity of the prescribed motion and zero acceleration.
+    velocity of the prescribed motion and zero acceleration. ``substeps`` stable steps are
+    taken per step of the time grid (see :func:`march`).
     """
 
     def __init__(self, problem: Problem, law: MaterialLaw, ops: Operators, dt: float,
@@ -318,29 +319,24 @@ class ExplicitStepper:
         self.inverse_mass = 1.0 / ops.mass.diagonal()
 
     def step(self, old: State, t: float, step: int) -> tuple[State, StepInfo]:
+        """One step of central difference from ``old.t`` to ``t`` (a substep of the loop)."""
         problem, ops, law = self.problem, self.ops, self.law
         fixed = self.constrained.dofs
-        h = (t - old.t) / self.substeps
-        state = old
-        for k in range(1, self.substeps + 1):
-            t_k = old.t + k * h
-            v_half = state.v + 0.5 * h * state.a
-            u = state.u + h * v_half
-            u[fixed] = problem.prescribed(t_k)
-            v_half[fixed] = (u[fixed] - state.u[fixed]) / h
-            check_finite(u, step, "explicit update", "displacement")
-            stress, plastic, _ = law.update(ops.strain_operator.strain(u), state.plastic)
-            check_finite(stress, step, "return map", "stress")
-            f_int = ops.strain_operator.internal_force(stress)
-            f_ext = problem.external_force(t_k)
-            damping = ops.damping @ v_half if ops.damping is not None else 0.0
-            force = f_ext - f_int - damping
-            a = force * self.inverse_mass
-            a[fixed] = 0.0
-            v = v_half + 0.5 * h * a
-            reaction = -force[fixed]
-            state = State(t_k, u, v, a, stress, plastic, f_int, reaction)
-        return state, StepInfo(self.substeps, 0.0)
+        h = t - old.t
+        v_half = old.v + 0.5 * h * old.a
+        u = old.u + h * v_half
+        u[fixed] = problem.prescribed(t)
+        v_half[fixed] = (u[fixed] - old.u[fixed]) / h
+        check_finite(u, step, "explicit update", "displacement")
+        stress, plastic, _ = law.update(ops.strain_operator.strain(u), old.plastic)
+        check_finite(stress, step, "return map", "stress")
+        f_int = ops.strain_operator.internal_force(stress)
+        damping = ops.damping @ v_half if ops.damping is not None else 0.0
+        force = problem.external_force(t) - f_int - damping
+        a = force * self.inverse_mass
+        a[fixed] = 0.0
+        v = v_half + 0.5 * h * a
+        return State(t, u, v, a, stress, plastic, f_int, -force[fixed]), StepInfo(1, 0.0)
 
 
 Observer = Callable[[int, State, Ledger, StepInfo], None]
@@ -348,14 +344,25 @@ Observer = Callable[[int, State, Ledger, StepInfo], None]
 
 def march(stepper, state: State, times: np.ndarray, problem: Problem, law: MaterialLaw,
           ops: Operators, observe: Observer, counters: Counters) -> tuple[State, Ledger]:
-    """Take the steps to ``times[1:]``; ``observe`` sees every committed step (and step 0)."""
+    """Take the steps to ``times[1:]``; ``observe`` sees every committed step (and step 0).
+
+    A stepper with ``substeps > 1`` takes that many equal steps per interval, each one
+    accounted in the energy ledger; ``observe`` sees the interval's end.
+    """
     ledger = initial_ledger(state, law, ops)
     observe(0, state, ledger, StepInfo(0, 0.0))
+    substeps = getattr(stepper, "substeps", 1)
     for n in range(1, len(times)):
         t0 = time.perf_counter()
-        new, info = stepper.step(state, float(times[n]), n)
-        ledger = account(ledger, state, new, problem, law, ops)
-        state = new
+        start, end = float(times[n - 1]), float(times[n])
+        iterations = 0
+        for k in range(1, substeps + 1):
+            t = end if k == substeps else start + (end - start) * k / substeps
+            new, info = stepper.step(state, t, n)
+            ledger = account(ledger, state, new, problem, law, ops)
+            state = new
+            iterations += info.iterations
+        info = replace(info, iterations=iterations)
         counters.steps += 1
         counters.iterations += info.iterations
         counters.solves += info.solves

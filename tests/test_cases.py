@@ -8,8 +8,10 @@ import numpy as np
 import pytest
 
 from fem_frac.cli import main
+from fem_frac.writers.history import read_history
 
 CASES = sorted((Path(__file__).parent.parent / "cases").glob("*.yaml"))
+STATIC = Path(__file__).parent.parent / "cases" / "cantilever.yaml"
 
 
 @pytest.mark.parametrize("case", CASES, ids=[c.stem for c in CASES])
@@ -28,10 +30,41 @@ def test_case_runs_and_writes_readable_output(case, tmp_path):
         assert np.all(np.isfinite(vtu.cell_data[name][0]))
     # the resolved copy reproduces the run
     assert main(["check", str(out / "case.resolved.yaml")]) == 0
+    history = read_history(out / "history.csv")
+    steps = summary["analysis"]["steps"]
+    assert history["step"] == list(range(steps + 1))
+    last = meshio.read(out / f"{case.stem}_{summary['output']['steps'] - 1:06d}.vtu")
+    text = case.read_text()
+    if "plasticity:" in text:
+        assert last.cell_data["plastic_strain"][0].shape[1] == 6
+        assert np.max(last.cell_data["equivalent_plastic_strain"][0]) > 0
+        assert max(history["yielded_points"]) > 0
+        assert summary["plastic_dissipation"] > 0
+    if "type: dynamic" in text:
+        assert last.point_data["velocity"].shape == (len(last.points), 3)
+    # implicit steps balance energy exactly up to their equilibrium residual (1e-8 per step);
+    # central difference only up to the O((omega dt)^2) share of the highest modes
+    explicit = "central_difference" in text
+    assert max(history["energy_error_relative"]) < (1e-2 if explicit else 1e-6)
+
+
+def test_beam_bent_past_yield_keeps_a_residual_deflection(tmp_path):
+    """Unloaded to zero load, an elastic beam returns to zero; this one keeps a plastic set
+    and the history shows the load-unload cycle: reactions back to zero."""
+    case = Path(__file__).parent.parent / "cases" / "beam_yield_unload.yaml"
+    out = tmp_path / "beam"
+    assert main(["run", str(case), "-o", str(out), "-q"]) == 0
+    h = read_history(out / "history.csv")
+    peak = int(np.argmax(h["max_displacement"]))
+    assert h["time"][peak] == 1.0
+    assert h["max_displacement"][-1] > 0.01 * h["max_displacement"][peak]
+    assert abs(h["reaction_xmin_z"][-1]) < 1e-6 * abs(h["reaction_xmin_z"][peak])
+    # the unloading branch is elastic: no new yielding after the peak
+    assert h["plastic_work"][-1] == pytest.approx(h["plastic_work"][peak], rel=1e-9)
 
 
 def test_run_refuses_to_overwrite_without_flag(tmp_path, capsys):
-    case = CASES[0]
+    case = STATIC
     out = tmp_path / "o"
     assert main(["run", str(case), "-o", str(out), "-q"]) == 0
     first = (out / "summary.json").read_text()
@@ -44,7 +77,7 @@ def test_run_refuses_to_overwrite_without_flag(tmp_path, capsys):
 def test_pvd_series_opens_in_vtk(tmp_path):
     """VTK's own reader (what ParaView uses) opens the .pvd and finds the fields."""
     pyvista = pytest.importorskip("pyvista")
-    case = CASES[0]
+    case = STATIC
     out = tmp_path / "o"
     assert main(["run", str(case), "-o", str(out), "-q"]) == 0
     reader = pyvista.get_reader(str(out / f"{case.stem}.pvd"))

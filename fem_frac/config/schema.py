@@ -178,8 +178,8 @@ CurveName = Annotated[
     str,
     Field(
         description="a name in load_curves, or 'ramp' (0 to 1 over the analysis) or "
-        "'constant' (1 throughout); default: constant for static and dynamic analyses, ramp "
-        "for quasi-static ones"
+        "'constant' (1 throughout); default: constant for dynamic analyses, ramp for static "
+        "and quasi-static ones"
     ),
 ]
 

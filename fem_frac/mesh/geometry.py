@@ -195,12 +195,17 @@ def build(kind: str, params: dict, element_size: float, order: int = 1) -> Mesh:
 
 # --- helpers ---------------------------------------------------------------------------------
 
+# OpenCASCADE's bounding boxes are padded by its absolute tolerance, 1e-7 (model units):
+# without a margin above it, a face of a body a few millimetres across in SI units is missed.
+OCC_PADDING = 1e-6
+
 
 def _build(make: Callable, rest: str | None, size: float, element_size: float, order: int) -> Mesh:
     """Run ``make(occ)`` in a gmsh session, name the faces, mesh.
 
     ``make`` builds one solid and returns name -> bounding boxes of its faces; faces found
-    in none of them are called ``rest``. Boxes are widened by ``1e-6 * size``.
+    in none of them are called ``rest``. Boxes are widened by ``1e-6 * size`` plus
+    ``OCC_PADDING``: OpenCASCADE pads every bounding box by its absolute tolerance.
     """
     import gmsh
 
@@ -211,7 +216,7 @@ def _build(make: Callable, rest: str | None, size: float, element_size: float, o
             occ = gmsh.model.occ
             groups = make(occ)
             occ.synchronize()
-            faces = _classify(gmsh.model, groups, rest, 1e-6 * size)
+            faces = _classify(gmsh.model, groups, rest, 1e-6 * size + OCC_PADDING)
         except MeshError:
             raise
         except Exception as exc:
