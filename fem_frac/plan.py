@@ -4,7 +4,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from .config.schema import Case
+from .config.schema import Case, DynamicAnalysis, StaticAnalysis
+from .loading import time_grid
 from .mesh.build import describe_source
 
 # Quadrature points per tet for each order (scikit-fem's rules for fem.space.INTORDER).
@@ -25,26 +26,89 @@ def make_plan(case: Case) -> list[Stage]:
     loads = f"{n_supports} support(s), {n_loads} surface load(s)"
     if case.body_force is not None:
         loads += ", gravity"
+    analysis = case.analysis
+    dynamic = isinstance(analysis, DynamicAnalysis)
+    formulation = " with averaged volumetric strain (B-bar)" if (
+        case.mesh.formulation == "averaged") else ""
+    fields = "displacement" + (", velocity" if dynamic else "") + "; stress, von_mises, " \
+        "max_principal_stress" + (
+            ", plastic_strain, equivalent_plastic_strain" if case.plasticity else "") + \
+        "; history.csv, summary.json"
     return [
         Stage("mesh", True, describe_source(case.mesh)),
         Stage(
             "space",
             True,
-            f"vector P{order} tetrahedra, {QUADRATURE_POINTS[order]} quadrature point(s) per tet",
+            f"vector P{order} tetrahedra{formulation}, {QUADRATURE_POINTS[order]} quadrature "
+            "point(s) per tet",
         ),
         Stage("loads", True, loads),
         Stage("stiffness", True, "isotropic linear elasticity, assembled once"),
-        Stage("mass", False, "static analysis needs no mass matrix"),
-        Stage("solve", True, f"static, linear solver {_solver(case.analysis.linear_solver)}"),
-        Stage("plasticity", False, "not requested"),
+        _mass(analysis),
+        Stage("solve", True, _solve(analysis)),
+        _plasticity(case),
         Stage("fracture", False, "not requested"),
         Stage("fragments", False, "not requested"),
-        Stage(
-            "output",
-            True,
-            "displacement; stress, von_mises, max_principal_stress; summary.json",
-        ),
+        Stage("output", True, fields + _cadence(analysis)),
     ]
+
+
+def _mass(analysis) -> Stage:
+    if not isinstance(analysis, DynamicAnalysis):
+        return Stage("mass", False, f"{analysis.type} analysis needs no mass matrix")
+    kind = analysis.mass or ("lumped" if analysis.integrator == "central_difference"
+                             else "consistent")
+    damping = ""
+    if analysis.rayleigh is not None:
+        damping = (f", Rayleigh damping {analysis.rayleigh.mass:g} M + "
+                   f"{analysis.rayleigh.stiffness:g} K")
+    return Stage("mass", True, f"{kind} mass{damping}")
+
+
+def _solve(analysis) -> str:
+    grid = time_grid(analysis)
+    if isinstance(analysis, StaticAnalysis):
+        text = "static, one step"
+    elif isinstance(analysis, DynamicAnalysis):
+        beta = analysis.beta if analysis.beta is not None else 0.25
+        gamma = analysis.gamma if analysis.gamma is not None else 0.5
+        text = {
+            "newmark": f"implicit Newmark (beta {beta:g}, gamma {gamma:g})",
+            "hht": f"implicit HHT-alpha (alpha {analysis.alpha:g})",
+            "central_difference": "explicit central difference",
+        }[analysis.integrator]
+        text += f", {grid.steps} steps of {grid.dt:.4g} to t = {grid.t_end:.4g}"
+    else:
+        text = f"quasi-static, {grid.steps} load steps of {grid.dt:.4g} to t = {grid.t_end:.4g}"
+    if isinstance(analysis, DynamicAnalysis) and analysis.integrator == "central_difference":
+        return text + ("; substeps below the stable step" if analysis.substeps else "")
+    return text + f", linear solver {_solver(analysis.linear_solver)}"
+
+
+def _plasticity(case: Case) -> Stage:
+    if case.plasticity is None:
+        return Stage("plasticity", False, "not requested")
+    p, eq = case.plasticity, case.analysis.equilibrium
+    law = "perfectly plastic" if p.hardening == 0 else f"isotropic hardening H = {p.hardening:g}"
+    iteration = {
+        "modified_newton": "modified Newton (elastic matrix factorized once)",
+        "newton": "full Newton (consistent tangent, refactorized per iteration)",
+        "single_pass": "single pass (no equilibrium iteration)",
+    }[eq.method]
+    if case.analysis.type == "dynamic" and case.analysis.integrator == "central_difference":
+        iteration = "explicit: return map once per step"
+    else:
+        iteration += f", relative residual <= {eq.tolerance:g}"
+    return Stage("plasticity", True,
+                 f"von Mises radial return, yield stress {p.yield_stress:g}, {law}; {iteration}")
+
+
+def _cadence(analysis) -> str:
+    if isinstance(analysis, StaticAnalysis):
+        return ""
+    every = analysis.output_every
+    return "; output at t = 0 and every step" if every == 1 else \
+        f"; output at t = 0, every {every} steps and the last"
 
 
 def _solver(method: str) -> str:

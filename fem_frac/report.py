@@ -9,7 +9,7 @@ import numpy as np
 
 from . import __version__
 from .config.loader import Source
-from .config.schema import Case
+from .config.schema import Case, DynamicAnalysis
 from .driver import build_model
 from .fem.loads import facet_basis
 from .mesh.build import mesh_file_path
@@ -54,9 +54,46 @@ def check_report(case: Case, source: Source) -> str:
         lines.append(f"  {name:<18} {len(triples):>8,} faces   area {area:.6g}")
     lines.append("supports and loads")
     lines += [f"  {d}" for d in model.problem.descriptions] or ["  (none)"]
+    if isinstance(case.analysis, DynamicAnalysis):
+        lines += _time_step_lines(case, model)
     lines.append("plan")
     lines.append(format_plan(make_plan(case)))
     return "\n".join(lines)
+
+
+def _time_step_lines(case: Case, model) -> list[str]:
+    """The stable step of central difference (and how the case's dt compares)."""
+    from .driver import Constrained, build_operators
+    from .fem.mass import lumped_mass
+    from .loading import time_grid
+    from .material import material_law
+    from .timestep import explicit_limit
+
+    if case.material.density is None:
+        return ["time step   (no density: a dynamic analysis needs material.density)"]
+    analysis = case.analysis
+    ops = build_operators(model, case, material_law(case.material, None), StageTimer())
+    r = analysis.rayleigh
+    limit = explicit_limit(
+        model.space, ops.stiffness, lumped_mass(model.space, case.material.density),
+        Constrained(model.problem, "auto").free, case.material.youngs_modulus,
+        case.material.poissons_ratio, case.material.density,
+        r.mass if r else 0.0, r.stiffness if r else 0.0,
+    )
+    dt = time_grid(analysis).dt
+    explicit = analysis.integrator == "central_difference"
+    verdict = ""
+    if explicit:
+        if dt <= limit.dt:
+            verdict = f"; dt {dt:.4g} is {dt / limit.dt:.2f} of it"
+        elif analysis.substeps:
+            verdict = f"; dt {dt:.4g} runs as {int(np.ceil(dt / limit.dt))} substeps"
+        else:
+            verdict = f"; dt {dt:.4g} is above it: run refuses (substeps: true to split)"
+    return [
+        f"time step   stable step of central difference {limit.dt:.4g} "
+        f"({limit.method}; element bound {limit.element_bound_dt:.4g}){verdict}",
+    ]
 
 
 def resolved_case(case: Case, source: Source, directory: Path, name: str) -> Case:
