@@ -11,6 +11,7 @@ from . import __version__
 from .config.loader import Source
 from .config.schema import Case, DynamicAnalysis
 from .driver import build_model
+from .errors import CaseError
 from .fem.loads import facet_basis
 from .mesh.build import mesh_file_path
 from .mesh.mesh import min_dihedral_angles
@@ -63,14 +64,14 @@ def check_report(case: Case, source: Source) -> str:
 
 def _time_step_lines(case: Case, model) -> list[str]:
     """The stable step of central difference (and how the case's dt compares)."""
-    from .driver import Constrained, build_operators
+    from .driver import Constrained, build_operators, explicit_substeps
     from .fem.mass import lumped_mass
     from .loading import time_grid
     from .material import material_law
     from .timestep import explicit_limit
 
     if case.material.density is None:
-        return ["time step   (no density: a dynamic analysis needs material.density)"]
+        raise CaseError(("material", "density"), "a dynamic analysis needs material.density")
     analysis = case.analysis
     ops = build_operators(model, case, material_law(case.material, None), StageTimer())
     r = analysis.rayleigh
@@ -81,15 +82,11 @@ def _time_step_lines(case: Case, model) -> list[str]:
         r.mass if r else 0.0, r.stiffness if r else 0.0,
     )
     dt = time_grid(analysis).dt
-    explicit = analysis.integrator == "central_difference"
     verdict = ""
-    if explicit:
-        if dt <= limit.dt:
-            verdict = f"; dt {dt:.4g} is {dt / limit.dt:.2f} of it"
-        elif analysis.substeps:
-            verdict = f"; dt {dt:.4g} runs as {int(np.ceil(dt / limit.dt))} substeps"
-        else:
-            verdict = f"; dt {dt:.4g} is above it: run refuses (substeps: true to split)"
+    if analysis.integrator == "central_difference":
+        substeps = explicit_substeps(limit, dt, analysis.substeps)  # refuses as run does
+        verdict = (f"; dt {dt:.4g} is {dt / limit.dt:.2f} of it" if substeps == 1
+                   else f"; dt {dt:.4g} runs as {substeps} substeps")
     return [
         f"time step   stable step of central difference {limit.dt:.4g} "
         f"({limit.method}; element bound {limit.element_bound_dt:.4g}){verdict}",

@@ -75,6 +75,36 @@ BAD = [
      _edit("  density: 7850\n", "") + "body_force:\n  gravity: [0, 0, -9.81]\n",
      18, "body_force.gravity", "needs material.density"),
     ("YAML syntax", _edit("traction: [0, 0, -1e5]", "traction: [0, 0, -1e5"), 18, "", "YAML"),
+    ("unknown load curve", _edit("traction: [0, 0, -1e5]", "traction: [0, 0, -1e5]\n"
+                                 "    curve: pulse"), 18, "boundary_conditions[1].curve",
+     "unknown load curve 'pulse'"),
+    ("unknown curve type", BASE + "load_curves:\n  pulse: {type: tabel, points: [[0, 1]]}\n",
+     19, "load_curves.pulse", "did you mean 'table'"),
+    ("table not increasing",
+     BASE + "load_curves:\n  pulse:\n    type: table\n    points: [[0, 0], [0, 1]]\n", 19,
+     "load_curves.pulse", "must increase"),
+    ("three of t_end dt steps", BASE + "analysis:\n  type: quasi_static\n  t_end: 1\n"
+     "  dt: 0.1\n  steps: 10\n", 18, "analysis", "two of 't_end', 'dt' and 'steps'"),
+    ("dynamic without times", BASE + "analysis:\n  type: dynamic\n  dt: 0.1\n", 18,
+     "analysis", "two of"),
+    ("HHT alpha out of range", BASE + "analysis:\n  type: dynamic\n  integrator: hht\n"
+     "  alpha: -0.5\n  dt: 1e-5\n  steps: 2\n", 21, "analysis.alpha", ">= -0.333"),
+    ("gamma below one half", BASE + "analysis:\n  type: dynamic\n  gamma: 0.4\n"
+     "  dt: 1e-5\n  steps: 2\n", 18, "analysis", "gamma < 1/2"),
+    ("explicit with consistent mass", BASE + "analysis:\n  type: dynamic\n"
+     "  integrator: central_difference\n  mass: consistent\n  dt: 1e-9\n  steps: 2\n", 18,
+     "analysis", "needs the lumped mass"),
+    ("explicit step above the limit", BASE + "analysis:\n  type: dynamic\n"
+     "  integrator: central_difference\n  dt: 1e-3\n  steps: 2\n", 21, "analysis.dt",
+     "exceeds the stable step"),
+    ("averaged P2", _edit("order: 1", "order: 2\n  formulation: averaged"), 2, "mesh",
+     "for linear tets"),
+    ("yield stress <= 0", BASE + "plasticity:\n  yield_stress: 0\n", 19,
+     "plasticity.yield_stress", "must be > 0"),
+    ("unknown equilibrium method", BASE + "analysis:\n  type: quasi_static\n"
+     "  equilibrium: {method: newtom}\n", 20, "analysis.equilibrium.method", "newton"),
+    ("dynamic without density", _edit("  density: 7850\n", "") + "analysis:\n"
+     "  type: dynamic\n  dt: 1e-5\n  steps: 2\n", 8, "material.density", "needs"),
 ]
 
 
