@@ -118,6 +118,13 @@ class Counters:
     seconds: dict = field(default_factory=dict)
 
 
+def _norm(x) -> float:
+    """Euclidean norm without BLAS: ``np.linalg.norm`` goes through a threaded BLAS dot
+    that costs milliseconds under contention for a vector that einsum sums in microseconds."""
+    x = np.asarray(x, dtype=float)
+    return float(np.sqrt(np.einsum("i,i->", x, x))) if x.ndim else abs(float(x))
+
+
 def check_finite(array: np.ndarray, step: int, stage: str, name: str) -> None:
     """Stop at once when ``array`` holds NaN or Inf, naming step, stage and field."""
     bad = ~np.isfinite(array)
@@ -268,9 +275,9 @@ class ImplicitStepper:
             residual = f_ext - inertial - (1.0 + alpha) * (damping + f_int) + history
             if iterations > 0:
                 check_finite(residual, step, "equilibrium", "residual force")
-                scale = max(np.linalg.norm(f_ext), np.linalg.norm((1.0 + alpha) * f_int),
-                            np.linalg.norm(inertial), 1e-300)
-                relative = float(np.linalg.norm(residual[free]) / scale)
+                scale = max(_norm(f_ext), (1.0 + alpha) * _norm(f_int), _norm(inertial),
+                            1e-300)
+                relative = _norm(residual[free]) / scale
                 if relative <= self.equilibrium.tolerance or method == "single_pass":
                     break
                 if iterations >= self.equilibrium.max_iterations:
