@@ -61,12 +61,13 @@ class StrainOperator:
     formulation: ``"standard"`` or ``"averaged"``.
 
     ``strain`` and ``internal_force`` do not go through ``matrix`` itself but through the
-    standard B (the same object for ``"standard"``) and, for ``"averaged"``, the two thin
+    standard B (the same object for ``"standard"``) and, for ``"averaged"``, two thin
     averaging matrices: the averaged ``matrix`` holds ~8x the nonzeros of the standard one
-    (~100 per normal row), and the factored products are ~5x faster with identical results
-    (to round-off). ``internal_force`` multiplies by a CSR copy of the standard ``B^T``
-    (a row-gather mat-vec), 1.27x faster than ``B.T @ x`` (CSC column scatter) at 1e5 P1
-    tets; see ``benchmarks/operators.py``.
+    (~100 per normal row) and the factored products are 3-5x faster, equal to round-off.
+    ``internal_force`` multiplies by ``B.T``, a CSC view (column scatter into the small
+    dof vector). A CSR copy of ``B^T`` (row gather) was measured and dropped: no faster on
+    structured meshes and 1.5-2.4x slower on gmsh's node order (1e5 P1 tets: 6.5 ms against
+    4.2 ms; 5e4 P2 tets: 37 ms against 16 ms); see ``benchmarks/operators.py``.
     """
 
     space: Space
@@ -74,13 +75,10 @@ class StrainOperator:
     weights: np.ndarray
     formulation: str
     _base: sp.csr_matrix = field(repr=False)  # standard B
-    _base_t: sp.csr_matrix = field(repr=False)  # CSR of the standard B^T
     # averaged only: qp rows -> vertices (volume-weighted) and vertices -> qp rows (mean of
-    # the tet's 4 vertices), and CSR copies of their transposes
+    # the tet's 4 vertices)
     _gather: sp.csr_matrix | None = field(default=None, repr=False)
     _spread: sp.csr_matrix | None = field(default=None, repr=False)
-    _gather_t: sp.csr_matrix | None = field(default=None, repr=False)
-    _spread_t: sp.csr_matrix | None = field(default=None, repr=False)
 
     @property
     def shape(self) -> tuple[int, int, int]:
@@ -102,28 +100,49 @@ class StrainOperator:
         y = (stress * self.weights).reshape(6, -1)
         if self._gather is not None:
             p = (y[0] + y[1] + y[2]) / 3.0
-            y[:3] += self._gather_t @ (self._spread_t @ p) - p
-        return self._base_t @ y.ravel()
+            y[:3] += self._gather.T @ (self._spread.T @ p) - p
+        return self._base.T @ y.ravel()
 
     def stiffness(self, tangent: np.ndarray) -> sp.csr_matrix:
-        """Tangent stiffness ``matrix.T @ blockdiag(D dx) @ matrix`` (``n_dofs x n_dofs``).
+        """Tangent stiffness ``sum B^T D B dx`` (``n_dofs x n_dofs``, CSR).
 
         ``tangent`` is a Mandel ``(6, 6)`` shared by all quadrature points or
-        ``(6, 6, n_tets, n_qp)``. For ``"standard"`` this sparse triple product is faster
-        than the element matrices of :func:`~fem_frac.fem.elasticity.stiffness` (1e5 P1
-        tets: 0.13 s against 0.33 s with a shared D, 0.16 s against 0.36 s per qp) and
-        equal to round-off. The averaged stiffness has a wider stencil (~10x the nonzeros
-        of the standard one at 1e5 P1 tets) and takes ~5 s there.
+        ``(6, 6, n_tets, n_qp)``. The faster of two equal (to round-off) assemblies, as
+        measured in ``benchmarks/operators.py`` (shared D, best of 3):
+
+        - P1 (either formulation): ``product_stiffness``, the sparse triple product. 1e5
+          P1 tets: 0.29 s against 0.64 s for the element matrices of
+          :func:`~fem_frac.fem.elasticity.stiffness` on a renumbered (RCM) mesh, about even
+          (0.95 s against 1.1 s) in gmsh's node order. The averaged B has no element blocks
+          and can only go this way.
+        - P2: the element matrices. 5e4 P2 tets: 1.3 s against 1.7 s (RCM) and 2.8 s
+          (gmsh order) for the product.
         """
+        tangent = self._checked(tangent)
+        if self.space.order == 1:
+            return self.product_stiffness(tangent)
+        from .elasticity import stiffness
+
+        return stiffness(self.space, tangent)
+
+    def product_stiffness(self, tangent: np.ndarray) -> sp.csr_matrix:
+        """``matrix.T @ blockdiag(D dx) @ matrix`` (CSR), either formulation.
+
+        Symmetric to round-off. The averaged one has a wider stencil: ~10x the nonzeros of
+        the standard stiffness at 1e5 P1 tets (a tet's strain reaches every vertex of the
+        tets around its own vertices).
+        """
+        w = _weighted_tangent(self._checked(tangent), self.weights)
+        return (self.matrix.T @ (w @ self.matrix)).tocsr()
+
+    def _checked(self, tangent: np.ndarray) -> np.ndarray:
         tangent = np.asarray(tangent, dtype=float)
         if tangent.shape not in ((6, 6), (6, 6) + self.weights.shape):
             raise ValueError(
                 f"tangent must be (6, 6) or (6, 6, {self.weights.shape[0]}, "
                 f"{self.weights.shape[1]}), got {tangent.shape}"
             )
-        w = _weighted_tangent(tangent, self.weights)
-        bt = self._base_t if self.matrix is self._base else self.matrix.T.tocsr()
-        return (bt @ (w @ self.matrix)).tocsr()
+        return tangent
 
 
 def strain_operator(space: Space, formulation: str = "standard") -> StrainOperator:
@@ -137,16 +156,17 @@ def strain_operator(space: Space, formulation: str = "standard") -> StrainOperat
         )
     weights = np.ascontiguousarray(space.basis.dx, dtype=float)
     base = standard_matrix(space)
-    parts = dict(_base=base, _base_t=base.T.tocsr())
-    matrix = base
-    if formulation == "averaged":
-        gather, spread = _averaging(space, weights)
-        parts.update(
-            _gather=gather, _spread=spread, _gather_t=gather.T.tocsr(), _spread_t=spread.T.tocsr()
-        )
-        matrix = _averaged_matrix(base, gather, spread)
+    if formulation == "standard":
+        return StrainOperator(space, base, weights, formulation, _base=base)
+    gather, spread = _averaging(space, weights)
     return StrainOperator(
-        space=space, matrix=matrix, weights=weights, formulation=formulation, **parts
+        space,
+        _averaged_matrix(base, gather, spread),
+        weights,
+        formulation,
+        _base=base,
+        _gather=gather,
+        _spread=spread,
     )
 
 
