@@ -63,11 +63,11 @@ class StrainOperator:
     ``strain`` and ``internal_force`` do not go through ``matrix`` itself but through the
     standard B (the same object for ``"standard"``) and, for ``"averaged"``, two thin
     averaging matrices: the averaged ``matrix`` holds ~8x the nonzeros of the standard one
-    (~100 per normal row) and the factored products are 3-5x faster, equal to round-off.
+    (~100 per normal row) and the factored products are 4-8x faster, equal to round-off.
     ``internal_force`` multiplies by ``B.T``, a CSC view (column scatter into the small
-    dof vector). A CSR copy of ``B^T`` (row gather) was measured and dropped: no faster on
-    structured meshes and 1.5-2.4x slower on gmsh's node order (1e5 P1 tets: 6.5 ms against
-    4.2 ms; 5e4 P2 tets: 37 ms against 16 ms); see ``benchmarks/operators.py``.
+    dof vector). A CSR copy of ``B^T`` (row gather) was measured and dropped: at best even
+    (P1, and any renumbered mesh), up to 2x slower in gmsh's node order (5e4 P2 tets: 30 ms
+    against 17 ms) and twice the memory; see ``benchmarks/operators.py``.
     """
 
     space: Space
@@ -111,12 +111,12 @@ class StrainOperator:
         measured in ``benchmarks/operators.py`` (shared D, best of 3):
 
         - P1 (either formulation): ``product_stiffness``, the sparse triple product. 1e5
-          P1 tets: 0.29 s against 0.64 s for the element matrices of
-          :func:`~fem_frac.fem.elasticity.stiffness` on a renumbered (RCM) mesh, about even
-          (0.95 s against 1.1 s) in gmsh's node order. The averaged B has no element blocks
-          and can only go this way.
-        - P2: the element matrices. 5e4 P2 tets: 1.3 s against 1.7 s (RCM) and 2.8 s
-          (gmsh order) for the product.
+          P1 tets: 0.24 s against 0.43 s for the element matrices of
+          :func:`~fem_frac.fem.elasticity.stiffness` on an RCM-renumbered mesh, 0.40 s
+          against 0.43 s in gmsh's node order. The averaged B has no element blocks and
+          can only go this way.
+        - P2: the element matrices. 5e4 P2 tets: 1.4 s against 2.8 s for the product in
+          gmsh's node order, 1.3 s against 1.7 s renumbered.
         """
         tangent = self._checked(tangent)
         if self.space.order == 1:
