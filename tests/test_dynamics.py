@@ -159,3 +159,27 @@ def test_consistent_and_lumped_mass_agree_on_the_first_bending_period():
     assert periods["lumped"] >= periods["consistent"]
     assert abs(periods["lumped"] / periods["consistent"] - 1) < 0.1
 
+
+
+def test_rayleigh_damping_dissipates_and_the_ledger_accounts_for_it():
+    """Average acceleration with trapezoidal damping work balances exactly: the energy the
+    beam loses is the damping work, to round-off."""
+    case = beam({"integrator": "newmark", "dt": 1e-5, "steps": 300,
+                 "rayleigh": {"mass": 50.0, "stiffness": 1e-5}})
+    setup, rows, _ = energies(case)
+    total = rows[:, 0] + rows[:, 1]
+    assert total[-1] < 0.9 * total[0]
+    assert np.max(rows[:, 2]) < 1e-9
+    _, state, ledger, _ = run(case)
+    assert ledger.damping_work == pytest.approx(total[0] - total[-1], rel=1e-9)
+
+
+def test_damping_shrinks_the_stable_step_of_central_difference():
+    from fem_frac.integrators import central_difference_limit
+
+    assert central_difference_limit(1e3) == pytest.approx(2e-3)
+    limits = [central_difference_limit(1e3, stiffness_damping=a1) for a1 in (0, 1e-4, 1e-3)]
+    assert limits[0] > limits[1] > limits[2] > 0
+    # xi = 1 (critical damping of the top mode): (2 / omega)(sqrt 2 - 1)
+    assert central_difference_limit(1e3, stiffness_damping=2e-3) == pytest.approx(
+        2e-3 * (np.sqrt(2) - 1))
