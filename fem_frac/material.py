@@ -23,6 +23,7 @@ class MaterialLaw:
     poissons_ratio: float
     yield_stress: float | None = None
     hardening: float = 0.0
+    kinematic_hardening: float = 0.0
 
     @property
     def plastic(self) -> bool:
@@ -34,7 +35,9 @@ class MaterialLaw:
         return isotropic_tangent(self.youngs_modulus, self.poissons_ratio)
 
     def initial_state(self, shape: tuple) -> PlasticState | None:
-        return PlasticState.zeros(shape) if self.plastic else None
+        if not self.plastic:
+            return None
+        return PlasticState.zeros(shape, kinematic=self.kinematic_hardening > 0.0)
 
     def update(self, strain: np.ndarray, state: PlasticState | None, tangent: bool = False):
         """``(stress, trial_state, D)`` for total Mandel ``strain`` ``(6, n_tets, n_qp)`` from
@@ -51,6 +54,7 @@ class MaterialLaw:
             self.yield_stress,
             self.hardening,
             tangent=tangent,
+            kinematic_hardening=self.kinematic_hardening,
         )
 
     def elastic_energy(self, stress: np.ndarray, weights: np.ndarray) -> float:
@@ -63,10 +67,15 @@ class MaterialLaw:
         return float(np.sum(density * weights))
 
     def hardening_energy(self, state: PlasticState | None, weights: np.ndarray) -> float:
-        """Energy stored by isotropic hardening, the integral of H alpha^2 / 2."""
-        if state is None or self.hardening == 0.0:
+        """Energy stored by hardening: the integral of H alpha^2 / 2 (isotropic) plus
+        3 |beta|^2 / (4 K) (kinematic, beta the backstress)."""
+        if state is None:
             return 0.0
-        return float(0.5 * self.hardening * np.sum(state.equivalent_plastic_strain**2 * weights))
+        energy = 0.5 * self.hardening * np.sum(state.equivalent_plastic_strain**2 * weights)
+        if self.kinematic_hardening > 0.0:
+            back = np.sum(state.backstress**2, axis=0)
+            energy += 0.75 / self.kinematic_hardening * np.sum(back * weights)
+        return float(energy)
 
 
 def material_law(material: schema.Material, plasticity: schema.Plasticity | None) -> MaterialLaw:
@@ -77,4 +86,5 @@ def material_law(material: schema.Material, plasticity: schema.Plasticity | None
         material.poissons_ratio,
         plasticity.yield_stress,
         plasticity.hardening,
+        plasticity.kinematic_hardening,
     )

@@ -14,13 +14,15 @@ L, A = 1.0, 0.2 * 0.2
 STRAIN = 3.0 * SIGMA_Y / E  # peak strain: three times the yield strain
 
 
-def bar(hardening: float, method: str, steps: int = 24, tolerance: float = 1e-10) -> dict:
+def bar(hardening: float, method: str, steps: int = 24, tolerance: float = 1e-10,
+        kinematic: float = 0.0) -> dict:
     """Uniaxial stress: symmetry on three faces, the end pulled to 3 yield strains, pushed
     back to -3 and pulled to +3 again (load, reverse, reload)."""
     return {
         "mesh": {"geometry": {"type": "box", "lengths": [L, 0.2, 0.2]}, "element_size": 0.1},
         "material": {"youngs_modulus": E, "poissons_ratio": NU},
-        "plasticity": {"yield_stress": SIGMA_Y, "hardening": hardening},
+        "plasticity": {"yield_stress": SIGMA_Y, "hardening": hardening,
+                       "kinematic_hardening": kinematic},
         "boundary_conditions": [
             {"type": "symmetry", "boundary": "xmin"},
             {"type": "symmetry", "boundary": "ymin"},
@@ -34,26 +36,27 @@ def bar(hardening: float, method: str, steps: int = 24, tolerance: float = 1e-10
     }
 
 
-def exact_uniaxial(strains: np.ndarray, hardening: float) -> np.ndarray:
+def exact_uniaxial(strains: np.ndarray, hardening: float, kinematic: float = 0.0) -> np.ndarray:
     """1D return map (the exact stress of a homogeneous bar under uniaxial stress): von Mises
-    reduces to |sigma| <= sigma_Y + H alpha with plastic strain rate = alpha rate."""
+    reduces to |sigma - K eps_p| <= sigma_Y + H alpha, with |d eps_p| = d alpha."""
     stress, plastic, alpha, out = 0.0, 0.0, 0.0, []
     for eps in strains:
         trial = E * (eps - plastic)
-        f = abs(trial) - (SIGMA_Y + hardening * alpha)
+        xi = trial - kinematic * plastic
+        f = abs(xi) - (SIGMA_Y + hardening * alpha)
         if f > 0:
-            dg = f / (E + hardening)
-            plastic += dg * np.sign(trial)
+            dg = f / (E + hardening + kinematic)
+            plastic += dg * np.sign(xi)
             alpha += dg
-            trial -= E * dg * np.sign(trial)
+            trial -= E * dg * np.sign(xi)
         stress = trial
         out.append(stress)
     return np.array(out)
 
 
-@pytest.mark.parametrize("hardening", [0.0, 20e9])
+@pytest.mark.parametrize("hardening,kinematic", [(0.0, 0.0), (20e9, 0.0), (0.0, 20e9)])
 @pytest.mark.parametrize("method", ["modified_newton", "newton"])
-def test_homogeneous_bar_follows_the_exact_cyclic_path(hardening, method):
+def test_homogeneous_bar_follows_the_exact_cyclic_path(hardening, kinematic, method):
     """A homogeneous field is exact in P1, so the bar's end force is sigma A of the 1D law at
     every step, to the equilibrium tolerance (1e-10), whichever iteration reaches it."""
     forces, strains, iterations = [], [], []
@@ -62,7 +65,8 @@ def test_homogeneous_bar_follows_the_exact_cyclic_path(hardening, method):
         forces.append(state.reaction)
         iterations.append(info.iterations)
 
-    setup, state, ledger, counters = run(bar(hardening, method), observe=observe)
+    setup, state, ledger, counters = run(bar(hardening, method, kinematic=kinematic),
+                                         observe=observe)
     problem = setup.model.problem
     dofs = problem.constraints.dofs
     full = np.zeros(problem.space.n_dofs)
@@ -75,12 +79,17 @@ def test_homogeneous_bar_follows_the_exact_cyclic_path(hardening, method):
         full[:] = 0.0
         full[dofs] = r
         measured.append(full[end][0::3].sum() / A)
-    expected = exact_uniaxial(strains, hardening)
+    expected = exact_uniaxial(strains, hardening, kinematic)
     np.testing.assert_allclose(measured, expected, rtol=0, atol=1e-8 * SIGMA_Y)
     # the path really is elastoplastic: saturated (or hardening) and reversed
     assert np.max(expected) >= SIGMA_Y and np.min(expected) <= -SIGMA_Y
-    # energy: the plastic work of two and a half yield excursions, balanced exactly
+    # energy: the plastic work of two and a half yield excursions, balanced exactly; the
+    # stored part is H alpha^2 / 2 + K eps_p^2 / 2 per unit volume (1D: axial eps_p)
     assert ledger.plastic_work > 0 and ledger.relative_error < 1e-9
+    alpha = state.plastic.equivalent_plastic_strain.mean()
+    axial = state.plastic.plastic_strain[0].mean()
+    stored = 0.5 * (hardening * alpha**2 + kinematic * axial**2) * L * A
+    assert ledger.hardening == pytest.approx(stored, rel=1e-9, abs=1e-12)
     if method == "newton":
         # the consistent tangent makes a plastic step converge in a couple of iterations
         assert max(iterations) <= 3

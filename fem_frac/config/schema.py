@@ -121,13 +121,15 @@ class Material(Section):
 
 
 class Plasticity(Section):
-    """Von Mises plasticity, associative, with linear isotropic hardening (``hardening`` H = 0:
-    perfectly plastic). The flow stress is ``yield_stress + hardening * alpha``, alpha the
-    equivalent plastic strain."""
+    """Von Mises plasticity, associative, with linear isotropic hardening (``hardening`` H)
+    and linear kinematic (Prager) hardening (``kinematic_hardening`` K); both 0: perfectly
+    plastic. The flow stress is ``yield_stress + hardening * alpha``, alpha the equivalent
+    plastic strain; the yield surface's centre (backstress) moves by (2/3) K d eps_p."""
 
     model: Literal["von_mises"] = "von_mises"
     yield_stress: PositiveFloat
     hardening: NonNegativeFloat = 0.0
+    kinematic_hardening: NonNegativeFloat = 0.0
 
 
 # --- load curves --------------------------------------------------------------------------

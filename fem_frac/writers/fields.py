@@ -27,14 +27,18 @@ def stress_fields(space: Space, stress: np.ndarray) -> dict[str, np.ndarray]:
 
 
 def plastic_fields(space: Space, state) -> dict[str, np.ndarray]:
-    """Cell data of a plastic state: ``plastic_strain`` (6 tensor components, VTK order) and
-    ``equivalent_plastic_strain``."""
+    """Cell data of a plastic state: ``plastic_strain`` (6 tensor components, VTK order),
+    ``equivalent_plastic_strain`` and, with kinematic hardening, ``backstress``."""
     mean = cell_average(space, state.plastic_strain)
     alpha = cell_average(space, state.equivalent_plastic_strain[None])[0]
-    return {
+    fields = {
         "plastic_strain": np.ascontiguousarray(tensor_from_mandel(mean).T),
         "equivalent_plastic_strain": alpha,
     }
+    if state.backstress is not None:
+        back = cell_average(space, state.backstress)
+        fields["backstress"] = np.ascontiguousarray(tensor_from_mandel(back).T)
+    return fields
 
 
 def vtk_cells(space: Space) -> tuple[str, np.ndarray]:
