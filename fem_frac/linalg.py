@@ -271,12 +271,19 @@ def _probe(a: sp.csr_matrix, solve: Solve, method: str) -> float:
     SolverError past PROBE_TOLERANCE or on non-finite values.
     """
     x = solve(np.random.default_rng(0).standard_normal(a.shape[0]))
-    norm = float(np.linalg.norm(x))
-    residual = float("inf")
-    if np.isfinite(norm) and norm > 0:
-        b1 = x / norm
-        residual = float(np.linalg.norm(a @ solve(b1) - b1))
-    if not residual <= PROBE_TOLERANCE:  # also catches NaN
+    with np.errstate(over="ignore", invalid="ignore"):
+        norm = float(np.sqrt(np.einsum("i,i->", x, x)))
+        residual = float("inf")
+        if np.isfinite(norm) and norm > 0:
+            b1 = x / norm
+            r = a @ solve(b1) - b1
+            residual = float(np.sqrt(np.einsum("i,i->", r, r)))
+    if not np.isfinite(residual):
+        raise SolverError(
+            f"{method}: a probe solve overflowed or gave NaN: the matrix's entries span more "
+            "orders of magnitude than double precision holds (check the units and the "
+            "material constants)")
+    if not residual <= PROBE_TOLERANCE:
         raise SolverError(SINGULAR_MESSAGE.format(
             detail=f"{method}: a probe solve has relative residual {residual:.1e} > "
                    f"{PROBE_TOLERANCE:g}"))
