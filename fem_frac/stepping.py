@@ -104,7 +104,7 @@ class StepInfo:
 class Equilibrium:
     method: str = "modified_newton"
     tolerance: float = 1e-8
-    max_iterations: int = 200
+    max_iterations: int = 500
 
 
 @dataclass

@@ -281,7 +281,7 @@ class Equilibrium(Section):
 
     method: Literal["modified_newton", "newton", "single_pass"] = "modified_newton"
     tolerance: PositiveFloat = 1e-8
-    max_iterations: PositiveInt = 200
+    max_iterations: PositiveInt = 500
 
 
 class StaticAnalysis(Section):
