@@ -227,6 +227,8 @@ class ImplicitStepper:
         self.problem, self.law, self.ops = problem, law, ops
         self.scheme, self.equilibrium, self.constrained = scheme, equilibrium, constrained
         self.elastic_jacobian = self.jacobian(ops.stiffness)
+        # K's columns of the constrained dofs: the force of moving prescribed values
+        self.fixed_columns = ops.stiffness.tocsc()[:, constrained.dofs].tocsr()
         self.factor = None  # elastic Jacobian's factorization, made on first use
         self.factorizations = 0
 
@@ -251,12 +253,14 @@ class ImplicitStepper:
         method = self.equilibrium.method
         inertia = ops.mass is not None and s.inertia
         alpha = s.alpha
-        f_ext = (1.0 + alpha) * problem.external_force(t)
+        load = problem.external_force(t)
+        f_ext = (1.0 + alpha) * load
         damp_old = ops.damping @ old.v if (ops.damping is not None and inertia) else 0.0
         if alpha:
             f_ext = f_ext - alpha * problem.external_force(old.t)
         history = alpha * (damp_old + old.internal_force) if alpha else 0.0
         u_pred, v_pred = s.predict(old.u, old.v, old.a) if inertia else (old.u, old.v)
+        f_ext_norm = _norm(f_ext)
 
         u = old.u.copy()
         u[fixed] = problem.prescribed(t)
@@ -264,9 +268,13 @@ class ImplicitStepper:
         solves = factorizations = 0
         # First iterate: linearize the internal force about the committed state with the
         # elastic stiffness (exact when the step stays elastic), so a step that needs no
-        # extra iteration costs one solve and one return map.
-        f_int = old.internal_force + ops.stiffness @ (u - old.u)
-        stress, plastic = old.stress, old.plastic
+        # extra iteration costs one solve and one return map. Only prescribed dofs have
+        # moved, so only their columns of K enter.
+        moved = u[fixed] - old.u[fixed]
+        f_int = old.internal_force
+        if np.any(moved):
+            f_int = f_int + self.fixed_columns @ moved
+        stress, plastic, tangent = old.stress, old.plastic, None
         iterations, relative = 0, np.inf
         while True:
             v, a = s.rates(u, u_pred, v_pred) if inertia else (old.v, old.a)
@@ -274,10 +282,10 @@ class ImplicitStepper:
             damping = ops.damping @ v if (ops.damping is not None and inertia) else 0.0
             residual = f_ext - inertial - (1.0 + alpha) * (damping + f_int) + history
             if iterations > 0:
-                check_finite(residual, step, "equilibrium", "residual force")
-                scale = max(_norm(f_ext), (1.0 + alpha) * _norm(f_int), _norm(inertial),
-                            1e-300)
+                scale = max(f_ext_norm, (1.0 + alpha) * _norm(f_int), _norm(inertial), 1e-300)
                 relative = _norm(residual[free]) / scale
+                if not np.isfinite(relative):
+                    _diagnose(step, u, stress, residual)
                 if relative <= self.equilibrium.tolerance or method == "single_pass":
                     break
                 if iterations >= self.equilibrium.max_iterations:
@@ -287,28 +295,34 @@ class ImplicitStepper:
                         f"tolerance {self.equilibrium.tolerance:g}); take smaller steps, "
                         "or use analysis.equilibrium.method: newton"
                     )
-            du = factor.solve(residual[free])
+                if method == "newton" and law.plastic:
+                    # refactorize only when the iterate is not yet converged
+                    factor = self.constrained.factorize(
+                        self.jacobian(ops.strain_operator.stiffness(tangent)))
+                    factorizations += 1
+            u[free] += factor.solve(residual[free])
             solves += 1
-            u[free] += du
-            check_finite(u, step, "solve", "displacement")
             strain = ops.strain_operator.strain(u)
             stress, plastic, tangent = law.update(strain, old.plastic,
                                                   tangent=(method == "newton"))
-            check_finite(stress, step, "return map", "stress")
             f_int = ops.strain_operator.internal_force(stress)
             iterations += 1
-            if method == "newton" and law.plastic:
-                factor = self.constrained.factorize(
-                    self.jacobian(ops.strain_operator.stiffness(tangent)))
-                factorizations += 1
         v, a = s.rates(u, u_pred, v_pred) if inertia else (np.zeros_like(u), np.zeros_like(u))
-        reaction = (f_int - problem.external_force(t))[fixed]
+        reaction = (f_int - load)[fixed]
         if inertia:
             reaction = reaction + (ops.mass @ a)[fixed]
             if ops.damping is not None:
                 reaction = reaction + (ops.damping @ v)[fixed]
         new = State(t, u, v, a, stress, plastic, f_int, reaction)
         return new, StepInfo(iterations, relative, solves, factorizations)
+
+
+def _diagnose(step: int, u: np.ndarray, stress: np.ndarray, residual: np.ndarray) -> None:
+    """Name the first non-finite field of an iterate whose residual norm is not finite."""
+    check_finite(u, step, "solve", "displacement")
+    check_finite(stress, step, "return map", "stress")
+    check_finite(residual, step, "equilibrium", "residual force")
+    raise SolverError(f"step {step}, stage equilibrium: the residual norm overflowed")
 
 
 class ExplicitStepper:
