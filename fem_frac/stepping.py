@@ -105,6 +105,42 @@ class Equilibrium:
     method: str = "modified_newton"
     tolerance: float = 1e-8
     max_iterations: int = 500
+    acceleration: str = "anderson"
+
+
+# Past corrections Anderson mixing keeps (Walker & Ni 2011 use 1 to 10; 5 is a common choice).
+ANDERSON_DEPTH = 5
+
+
+class Anderson:
+    """Anderson acceleration of the fixed-point iteration u <- u + J0^-1 R(u) of modified
+    Newton (Walker & Ni, SIAM J. Numer. Anal. 49, 2011): the next iterate combines the last
+    ``depth`` iterates so as to minimize the linearized correction. The corrections are
+    J0-preconditioned residuals already computed by the back-solve, so it costs a few dot
+    products per iteration; a converged iteration is unchanged (the correction vanishes).
+    """
+
+    def __init__(self, depth: int):
+        self.depth = depth
+        self.u: list[np.ndarray] = []
+        self.f: list[np.ndarray] = []
+
+    def __call__(self, u: np.ndarray, f: np.ndarray) -> np.ndarray:
+        """The step to take from ``u`` given the plain correction ``f``."""
+        self.u.append(u.copy())
+        self.f.append(f)
+        if len(self.u) > self.depth + 1:
+            self.u.pop(0)
+            self.f.pop(0)
+        if len(self.u) < 2:
+            return f
+        df = np.stack([b - a for a, b in zip(self.f[:-1], self.f[1:], strict=True)], axis=1)
+        du = np.stack([b - a for a, b in zip(self.u[:-1], self.u[1:], strict=True)], axis=1)
+        gamma, *_ = np.linalg.lstsq(df, f, rcond=1e-10)
+        if not np.all(np.isfinite(gamma)):
+            self.u, self.f = self.u[-1:], self.f[-1:]
+            return f
+        return f - (du + df) @ gamma
 
 
 @dataclass
@@ -276,6 +312,9 @@ class ImplicitStepper:
             f_int = f_int + self.fixed_columns @ moved
         stress, plastic, tangent = old.stress, old.plastic, None
         iterations, relative = 0, np.inf
+        accelerate = None
+        if method == "modified_newton" and self.equilibrium.acceleration == "anderson":
+            accelerate = Anderson(ANDERSON_DEPTH)
         while True:
             v, a = s.rates(u, u_pred, v_pred) if inertia else (old.v, old.a)
             inertial = ops.mass @ a if inertia else 0.0
@@ -300,8 +339,11 @@ class ImplicitStepper:
                     factor = self.constrained.factorize(
                         self.jacobian(ops.strain_operator.stiffness(tangent)))
                     factorizations += 1
-            u[free] += factor.solve(residual[free])
+            correction = factor.solve(residual[free])
             solves += 1
+            if accelerate is not None:
+                correction = accelerate(u[free], correction)
+            u[free] += correction
             strain = ops.strain_operator.strain(u)
             stress, plastic, tangent = law.update(strain, old.plastic,
                                                   tangent=(method == "newton"))

@@ -276,10 +276,13 @@ class Equilibrium(Section):
     ``newton``: the consistent tangent, reassembled and refactorized every iteration;
     ``single_pass``: one solve per step, the return map after it, no iteration (the residual
     left is reported, not reduced). ``tolerance`` bounds the residual norm relative to the
-    largest force norm of the step.
+    largest force norm of the step. ``acceleration: anderson`` mixes the last iterates of
+    modified Newton (Anderson acceleration), which cuts its iterations several-fold at the
+    cost of a few dot products; ``none`` is the plain iteration.
     """
 
     method: Literal["modified_newton", "newton", "single_pass"] = "modified_newton"
+    acceleration: Literal["anderson", "none"] = "anderson"
     tolerance: PositiveFloat = 1e-8
     max_iterations: PositiveInt = 500
 
