@@ -98,6 +98,8 @@ def _plasticity(case: Case) -> Stage:
     if case.analysis.type == "dynamic" and case.analysis.integrator == "central_difference":
         iteration = "explicit: return map once per step"
     else:
+        if eq.method == "modified_newton" and eq.acceleration == "anderson":
+            iteration += ", Anderson-accelerated"
         iteration += f", relative residual <= {eq.tolerance:g}"
     return Stage("plasticity", True,
                  f"von Mises radial return, yield stress {p.yield_stress:g}, {law}; {iteration}")
