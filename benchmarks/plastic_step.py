@@ -10,17 +10,16 @@ times ``ImplicitStepper.step`` for
 - (c) the same step with full Newton (iterations, tangent assembly and factorization share),
 
 and breaks every step down by wrapping what the stepper calls (back-solve, strain, return
-map, internal force, external force, the linearized predictor ``K du``, finiteness checks;
-for Newton the tangent assembly and the factorization) with timers: what is left is the
-stepper's own residual and bookkeeping arithmetic. ``lean (a)`` is a prototype of the
-step (a) with the overheads found here removed (see docs/performance.md).
+map, internal force, external force, residual norms; for Newton the tangent assembly and
+the factorization) with timers: what is left is the stepper's own residual and bookkeeping
+arithmetic.
 
 The case: a thick hollow sphere octant (radii 1 and 2, symmetry planes) under internal
 pressure ramped to the yield stress, von Mises with linear hardening, quasi-static; loaded
 in 9 steps to 0.9 sigma_Y, when the inner part of the wall has yielded. Each configuration
 runs in a fresh subprocess. Prints markdown tables; the numbers are in docs/performance.md.
 
-    python benchmarks/plastic_step.py                       # P1 10k, 100k; P2 10k, 50k
+    python benchmarks/plastic_step.py --repeats 9            # P1 10k, 100k; P2 10k, 50k
     python benchmarks/plastic_step.py --configs 10000,1 --repeats 5
 """
 
@@ -270,56 +269,6 @@ def exclusive(seconds: dict[str, float], total: float) -> dict[str, float]:
     return s
 
 
-# ---------------------------------------------------------------- prototype of a lean step
-
-def _norm(x: np.ndarray) -> float:
-    """Euclidean norm without BLAS (numpy's einsum loop), as the stepper's."""
-    return float(np.sqrt(np.einsum("i,i->", x, x)))
-
-
-class LeanStep:
-    """Step (a) of a quasi-static stepper with what this benchmark found above the floor
-    removed (a prototype, not the stepper): the predictor
-    ``K du`` only when prescribed values move and then only through ``K[:, fixed]``, one
-    external force per step, the finiteness check on the displacement and the residual norm
-    only (a NaN in u or in the stress reaches the norm), the residual on the free dofs.
-    ``step`` returns ``(u, stress, plastic, f_int, relative residual, iterations)``."""
-
-    def __init__(self, stepper):
-        self.stepper = stepper
-        self.k_fixed = stepper.ops.stiffness[:, stepper.constrained.dofs].tocsr()
-
-    def step(self, old, t: float):
-        stepper = self.stepper
-        problem, law, op = stepper.problem, stepper.law, stepper.ops.strain_operator
-        free, fixed = stepper.constrained.free, stepper.constrained.dofs
-        f_ext = problem.external_force(t)
-        f_free = f_ext[free]
-        u = old.u.copy()
-        moved = problem.prescribed(t) - old.u[fixed]
-        f_int = old.internal_force
-        if np.any(moved):
-            u[fixed] += moved
-            f_int = f_int + self.k_fixed @ moved
-        factor = stepper.elastic_factor()
-        scale_ext = _norm(f_ext)
-        iterations = 0
-        residual = f_free - f_int[free]
-        while True:
-            u[free] += factor.solve(residual)
-            if not np.isfinite(u).all():
-                raise FloatingPointError("displacement is not finite")
-            stress, plastic, _ = law.update(op.strain(u), old.plastic)
-            f_int = op.internal_force(stress)
-            iterations += 1
-            residual = f_free - f_int[free]
-            relative = _norm(residual) / max(scale_ext, _norm(f_int), 1e-300)
-            if not np.isfinite(relative):
-                raise FloatingPointError("residual is not finite")
-            if relative <= stepper.equilibrium.tolerance or iterations >= 200:
-                return u, stress, plastic, f_int, relative, iterations
-
-
 # ---------------------------------------------------------------- one configuration
 
 def one(n_tets: int, order: int, formulation: str, repeats: int, newton_repeats: int) -> dict:
@@ -369,11 +318,6 @@ def one(n_tets: int, order: int, formulation: str, repeats: int, newton_repeats:
     row["a_ratio"] = row["a_s"] / floor
     # against DESIGN §7's wider floor: the whole pass over the quadrature points
     row["a_pass_ratio"] = row["a_s"] / (floor + row["strain_s"] + row["internal_force_s"])
-    lean_step = LeanStep(st)
-    row["lean_a_s"], lean = best(lambda: lean_step.step(state, t_a), repeats)
-    row["lean_a_ratio"] = row["lean_a_s"] / floor
-    row["lean_a_iterations"] = lean[5]
-    row["lean_a_max_du"] = float(np.abs(lean[0] - new_a.u).max() / np.abs(new_a.u).max())
 
     # (b) plastic loading step, modified Newton
     b_repeats = max(1, min(3, repeats // 2))
@@ -395,10 +339,6 @@ def one(n_tets: int, order: int, formulation: str, repeats: int, newton_repeats:
     row["c_ratio"] = total / floor
     row["c_parts"] = c = exclusive(seconds, total)
     row["c_calls"] = calls
-    # the stepper assembles and factorizes the tangent after every iterate, the converged
-    # one included, whose factorization no solve uses: one of ``factorizations`` is spare
-    spare = (c.get("tangent assembly", 0.0) + sum(c.get(k, 0.0) for k in FACTOR_LABELS))
-    row["c_spare_s"] = spare / max(info.factorizations, 1)
     row["c_tangent_s"] = c.get("return map", 0.0) - info.iterations * row["return_map_s"]
     row.update(pardiso_phases(setup))
     row["peak_mib"] = peak_mib()
@@ -415,15 +355,14 @@ def summary_table(rows: list[dict]) -> str:
     """Floor and step (a)."""
     head = ("| tets | P | free dofs | qp | yielded | solver | back-solve ms | return map ms "
             "| floor ms | strain ms | internal force ms | (a) iterations | (a) ms | (a)/floor "
-            "| (a)/(floor + strain + internal force) | lean (a) ms | lean (a)/floor |")
-    rule = "|" + "---|" * 17
+            "| (a)/(floor + strain + internal force) |")
+    rule = "|" + "---|" * 15
     body = [
         f"| {r['tets']:,} | P{r['order']} | {r['free_dofs']:,} | {r['qp']:,} "
         f"| {100 * r['yielded']:.0f} % | {r['solver']} | {_ms(r['solve_s'])} "
         f"| {_ms(r['return_map_s'])} | {_ms(r['floor_s'])} | {_ms(r['strain_s'])} "
         f"| {_ms(r['internal_force_s'])} | {r['a_iterations']} | {_ms(r['a_s'])} "
-        f"| **{r['a_ratio']:.2f}** | {r['a_pass_ratio']:.2f} "
-        f"| {_ms(r['lean_a_s'])} | **{r['lean_a_ratio']:.2f}** |"
+        f"| **{r['a_ratio']:.2f}** | {r['a_pass_ratio']:.2f} |"
         for r in rows
     ]
     return "\n".join([head, rule, *body])
@@ -433,9 +372,8 @@ def newton_table(rows: list[dict]) -> str:
     """Steps (b) and (c)."""
     head = ("| tets | P | (b) iterations | (b) s | (b)/floor | (b)/iteration/floor "
             "| (c) iterations | (c) factorizations | (c) s | (c)/floor | (c)/(b) "
-            "| (c) tangent + assembly | (c) factorization | (c) spare last factorization "
-            "| PARDISO analysis / numeric s |")
-    rule = "|" + "---|" * 15
+            "| (c) tangent + assembly | (c) factorization | PARDISO analysis / numeric s |")
+    rule = "|" + "---|" * 14
     body = []
     for r in rows:
         c, total = r["c_parts"], r["c_s"]
@@ -451,8 +389,7 @@ def newton_table(rows: list[dict]) -> str:
             f"| {r['c_iterations']} "
             f"| {r['c_factorizations']} | {total:.2f} | {r['c_ratio']:.0f} "
             f"| {total / r['b_s']:.1f} "
-            f"| {100 * assembly / total:.0f} % | {100 * factor / total:.0f} % "
-            f"| {r['c_spare_s']:.2f} s ({100 * r['c_spare_s'] / total:.0f} %) | {phases} |"
+            f"| {100 * assembly / total:.0f} % | {100 * factor / total:.0f} % | {phases} |"
         )
     return "\n".join([head, rule, *body])
 
