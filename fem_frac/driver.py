@@ -22,6 +22,7 @@ from .material import MaterialLaw, material_law
 from .mesh.build import build_mesh
 from .mesh.mesh import Mesh
 from .problem import Problem, build_problem, free_rigid_modes
+from .reference import check_reference, reference_error
 from .stepping import (
     Constrained,
     Counters,
@@ -163,6 +164,7 @@ class Setup:
 def prepare(case: Case, case_dir: Path, timer: StageTimer, log: Log = quiet) -> Setup:
     """Everything before the first step; every input error is raised here."""
     analysis = case.analysis
+    check_reference(case)
     model = build_model(case, case_dir, timer, log)
     space, problem = model.space, model.problem
     dynamic = isinstance(analysis, DynamicAnalysis)
@@ -251,6 +253,11 @@ def run_case(
 
         state, ledger, counters = simulate(setup, timer, observe, log)
     summary = _summary(setup, case_path, state, ledger, counters, timer)
+    if case.reference is not None:
+        summary["reference"] = reference_error(setup, state)
+        ref = summary["reference"]
+        log(f"reference  {ref['solution']}: {ref['quantity']} {ref['computed']:.6g}, exact "
+            f"{ref['exact']:.6g}, relative error {ref['relative_error']:+.3e}")
     summary["output"] = {"pvd": str(writer.pvd_path), "steps": len(writer.entries),
                          "history": str(out_dir / "history.csv")}
     (out_dir / "summary.json").write_text(json.dumps(summary, indent=2) + "\n")

@@ -384,6 +384,13 @@ class Output(Section):
     name: str | None = Field(default=None, description="base name of the .pvd; default: case")
 
 
+class Reference(Section):
+    """An exact solution the case is compared against; the error is reported in
+    summary.json (see fem_frac/reference.py for what each compares)."""
+
+    solution: Literal["cantilever", "lame_sphere", "hill_sphere", "uniaxial_bar"]
+
+
 UNIT_SYSTEMS = ("SI", "mm-N-s")
 
 
@@ -399,4 +406,5 @@ class Case(Section):
     plasticity: Plasticity | None = None
     load_curves: dict[str, LoadCurve] = {}
     analysis: Analysis = StaticAnalysis()
+    reference: Reference | None = None
     output: Output = Output()

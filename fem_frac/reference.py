@@ -1,0 +1,164 @@
+"""Exact references a case can declare (``reference: {solution: ...}``): the quantity each
+compares, its exact value from :mod:`fem_frac.exact`, and the run's error, reported in
+``summary.json``.
+
+- ``cantilever``: a box along x, ``fixed`` on ``xmin``, a uniform z ``traction`` on
+  ``xmax``, elastic. Tip deflection (mean of -u_z over the nodes of x = L) against
+  Timoshenko beam theory.
+- ``lame_sphere``: a ``hollow_sphere`` with a ``pressure`` on ``inner``, elastic. L2 norm of
+  the displacement error over the body, relative to the L2 norm of the exact field.
+- ``hill_sphere``: a ``hollow_sphere`` octant with a ``pressure`` on ``inner``, perfectly
+  plastic. Outer radial displacement (mean of u . x/|x| over the ``outer`` nodes) against
+  Hill.
+- ``uniaxial_bar``: a box with ``symmetry`` on ``xmin ymin zmin`` and an x ``displacement``
+  on ``xmax``. Axial stress (the ``xmax`` reaction over the face's area) against the exact
+  1D elastoplastic path along the same steps.
+
+A reference that does not fit the case is a :class:`CaseError` at ``reference.solution``,
+raised before the solve.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from . import exact
+from .config import schema
+from .errors import CaseError
+
+KEY = ("reference", "solution")
+
+
+def _by_type(case: schema.Case, kind, boundary: str):
+    found = [(i, bc) for i, bc in enumerate(case.boundary_conditions)
+             if isinstance(bc, kind) and bc.boundary == boundary]
+    return found[-1][1] if found else None
+
+
+def _need(condition: bool, solution: str, what: str) -> None:
+    if not condition:
+        raise CaseError(KEY, f"reference {solution!r} needs {what}")
+
+
+def check_reference(case: schema.Case) -> None:
+    """Raise a located CaseError when the declared reference does not fit the case."""
+    if case.reference is None:
+        return
+    name, geometry = case.reference.solution, case.mesh.geometry
+    if name == "cantilever":
+        _need(isinstance(geometry, schema.BoxGeometry), name, "a box geometry")
+        _need(_by_type(case, schema.Fixed, "xmin") is not None, name, "fixed on 'xmin'")
+        t = _by_type(case, schema.Traction, "xmax")
+        _need(t is not None and t.traction[0] == 0 and t.traction[1] == 0, name,
+              "a z traction on 'xmax'")
+        _need(case.plasticity is None, name, "an elastic material")
+    elif name in ("lame_sphere", "hill_sphere"):
+        _need(isinstance(geometry, schema.HollowSphereGeometry), name,
+              "a hollow_sphere geometry")
+        _need(_by_type(case, schema.Pressure, "inner") is not None, name,
+              "a pressure on 'inner'")
+        if name == "lame_sphere":
+            _need(case.plasticity is None, name, "an elastic material")
+        else:
+            _need(case.plasticity is not None and case.plasticity.hardening == 0
+                  and case.plasticity.kinematic_hardening == 0, name,
+                  "perfect plasticity (no hardening)")
+            _need(geometry.sector == "octant", name, "the octant sector")
+    elif name == "uniaxial_bar":
+        _need(isinstance(geometry, schema.BoxGeometry), name, "a box geometry")
+        for face in ("xmin", "ymin", "zmin"):
+            _need(_by_type(case, schema.Symmetry, face) is not None, name,
+                  f"symmetry on '{face}'")
+        d = _by_type(case, schema.Displacement, "xmax")
+        _need(d is not None and d.x is not None, name, "an x displacement on 'xmax'")
+
+
+def reference_error(setup, state) -> dict:
+    """``{solution, quantity, computed, exact, relative_error}`` of the final state."""
+    case = setup.case
+    name = case.reference.solution
+    space, problem = setup.model.space, setup.model.problem
+    e, nu = case.material.youngs_modulus, case.material.poissons_ratio
+    x = space.node_points
+    if name == "cantilever":
+        length, width, height = case.mesh.geometry.lengths
+        origin = np.asarray(case.mesh.geometry.origin)
+        t = _by_type(case, schema.Traction, "xmax")
+        force = -t.traction[2] * width * height * _factor(problem, case.analysis, state.t, t)
+        tip = np.isclose(x[:, 0], origin[0] + length)
+        computed = -float(np.mean(state.u[3 * np.flatnonzero(tip) + 2]))
+        value = exact.cantilever_tip_deflection(force, length, width, height, e, nu)
+        quantity = "tip deflection"
+    elif name == "lame_sphere":
+        from .fem.errors import l2_error
+
+        g = case.mesh.geometry
+        p = _by_type(case, schema.Pressure, "inner")
+        pressure = p.pressure * _factor(problem, case.analysis, state.t, p)
+
+        def field(points):
+            return exact.lame_sphere_displacement(points, g.center, g.inner_radius,
+                                                  g.outer_radius, pressure, e, nu)
+
+        err, norm = l2_error(space, state.u, field)
+        return _row(name, "L2 displacement error / L2 norm", err / norm, 0.0, err / norm)
+    elif name == "hill_sphere":
+        g = case.mesh.geometry
+        p = _by_type(case, schema.Pressure, "inner")
+        pressure = p.pressure * _factor(problem, case.analysis, state.t, p)
+        sy = case.plasticity.yield_stress
+        c = exact.hill_sphere_plastic_radius(pressure, g.inner_radius, g.outer_radius, sy)
+        value = exact.hill_sphere_outer_displacement(c, g.outer_radius, sy, e, nu)
+        d = x - np.asarray(g.center)
+        r = np.linalg.norm(d, axis=1)
+        outer = np.isclose(r, g.outer_radius, rtol=1e-6)
+        u = state.u.reshape(-1, 3)[outer]
+        computed = float(np.mean(np.sum(u * d[outer], axis=1) / r[outer]))
+        quantity = "outer radial displacement"
+    else:  # uniaxial_bar
+        lengths = case.mesh.geometry.lengths
+        area = lengths[1] * lengths[2]
+        full = np.zeros(space.n_dofs)
+        full[problem.constraints.dofs] = state.reaction
+        computed = float(full[problem.reaction_groups["xmax"]][0::3].sum() / area)
+        d = _by_type(case, schema.Displacement, "xmax")
+        grid = setup.grid
+        strains = [d.x * _factor(problem, case.analysis, grid.time(n), d) / lengths[0]
+                   for n in range(1, grid.steps + 1)]
+        value = uniaxial_stress(strains, case)
+        quantity = "axial stress"
+    return _row(name, quantity, computed, value, (computed - value) / abs(value))
+
+
+def uniaxial_stress(strains, case: schema.Case) -> float:
+    """Exact axial stress of a homogeneous bar in uniaxial stress after the axial strain
+    history ``strains``: the 1D return map |sigma - K eps_p| <= sigma_Y + H alpha (elastic
+    when the case has no plasticity)."""
+    e = case.material.youngs_modulus
+    p = case.plasticity
+    sigma, plastic, alpha = 0.0, 0.0, 0.0
+    for eps in strains:
+        sigma = e * (eps - plastic)
+        if p is None:
+            continue
+        xi = sigma - p.kinematic_hardening * plastic
+        f = abs(xi) - (p.yield_stress + p.hardening * alpha)
+        if f > 0:
+            dg = f / (e + p.hardening + p.kinematic_hardening)
+            plastic += dg * np.sign(xi)
+            alpha += dg
+            sigma -= e * dg * np.sign(xi)
+    return float(sigma)
+
+
+def _factor(problem, analysis, t: float, condition) -> float:
+    """The curve factor of ``condition`` at time ``t``."""
+    from .loading import default_curve
+
+    name = condition.curve if condition.curve is not None else default_curve(analysis)
+    return float(problem.curves[problem.curve_names.index(name)](t))
+
+
+def _row(name, quantity, computed, value, error) -> dict:
+    return {"solution": name, "quantity": quantity, "computed": float(computed),
+            "exact": float(value), "relative_error": float(error)}
