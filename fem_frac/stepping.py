@@ -290,6 +290,7 @@ class ImplicitStepper:
         inertia = ops.mass is not None and s.inertia
         alpha = s.alpha
         load = problem.external_force(t)
+        check_finite(load, step, "loads", "external force")
         f_ext = (1.0 + alpha) * load
         damp_old = ops.damping @ old.v if (ops.damping is not None and inertia) else 0.0
         if alpha:
@@ -395,7 +396,9 @@ class ExplicitStepper:
         check_finite(stress, step, "return map", "stress")
         f_int = ops.strain_operator.internal_force(stress)
         damping = ops.damping @ v_half if ops.damping is not None else 0.0
-        force = problem.external_force(t) - f_int - damping
+        load = problem.external_force(t)
+        check_finite(load, step, "loads", "external force")
+        force = load - f_int - damping
         a = force * self.inverse_mass
         a[fixed] = 0.0
         v = v_half + 0.5 * h * a
@@ -421,7 +424,9 @@ def march(stepper, state: State, times: np.ndarray, problem: Problem, law: Mater
         iterations = 0
         for k in range(1, substeps + 1):
             t = end if k == substeps else start + (end - start) * k / substeps
-            new, info = stepper.step(state, t, n)
+            # overflow becomes inf/NaN, which the steppers' finiteness checks stop at once
+            with np.errstate(over="ignore", invalid="ignore"):
+                new, info = stepper.step(state, t, n)
             ledger = account(ledger, state, new, problem, law, ops)
             state = new
             iterations += info.iterations

@@ -105,3 +105,34 @@ def test_overflowing_solution_stops_with_a_diagnostic_and_writes_no_field(tmp_pa
     err = capsys.readouterr().err
     assert "error:" in err and ("not finite" in err or "overflowed" in err)
     assert not list(out.glob("*.vtu")) and not (out / "summary.json").exists()
+
+
+def test_a_run_that_overflows_mid_way_stops_at_once_and_keeps_what_it_wrote(tmp_path, capsys):
+    """The load jumps to 1e306 in step 3: the step loop stops there, names step, stage and
+    field, and the series written before it (steps 0-2) stays valid and finite."""
+    case = tmp_path / "blow.yaml"
+    case.write_text(
+        "mesh: {geometry: {type: box, lengths: [1.0, 0.2, 0.2]}, element_size: 0.1}\n"
+        "material: {youngs_modulus: 200e9, poissons_ratio: 0.3}\n"
+        "boundary_conditions:\n"
+        "  - {type: fixed, boundary: xmin}\n"
+        "  - {type: traction, boundary: xmax, traction: [0, 0, -1e6], curve: blow_up}\n"
+        "load_curves:\n"
+        "  blow_up: {type: table, points: [[0, 0], [2, 2], [3, 1e306]]}\n"
+        "analysis: {type: quasi_static, t_end: 4, steps: 4}\n"
+    )
+    out = tmp_path / "out"
+    assert main(["run", str(case), "-o", str(out), "-q"]) == 3
+    err = capsys.readouterr().err
+    assert "step 3, stage loads: external force is not finite" in err
+    assert "Warning" not in err
+    history = read_history(out / "history.csv")
+    assert history["step"] == [0, 1, 2]
+    import xml.etree.ElementTree as ET
+
+    files = [d.get("file") for d in ET.parse(out / "blow.pvd").getroot().iter("DataSet")]
+    assert len(files) == 3
+    for name in files:
+        mesh = meshio.read(out / name)
+        assert np.all(np.isfinite(mesh.point_data["displacement"]))
+        assert np.all(np.isfinite(mesh.cell_data["stress"][0]))
