@@ -172,7 +172,10 @@ def _factorize_pardiso(a: sp.csr_matrix) -> Solve:
     handle = _PardisoHandle(a)
     dummy = np.zeros(handle.n)
     _pardiso_check(handle.call(12, dummy, dummy), "factorization")  # analysis + factor
+    return _pardiso_solve(handle)
 
+
+def _pardiso_solve(handle: _PardisoHandle) -> Solve:
     def solve(b: np.ndarray) -> np.ndarray:
         b = np.asfortranarray(b)
         x = np.empty_like(b, order="F")
@@ -307,3 +310,44 @@ def factorize(a: sp.spmatrix | sp.sparray, method: str = "auto") -> Factorizatio
     factorization.probe_residual = _probe(a, solve, name)
     factorization.factor_time = time.perf_counter() - start
     return factorization
+
+
+class Refactorizer:
+    """Factorizations of a sequence of matrices with one sparsity pattern (the tangents of
+    full Newton): PARDISO's ordering and symbolic analysis (phase 11) run once, each matrix
+    then costs only the numerical factorization (phase 22). A matrix with another pattern
+    is analysed afresh; other backends factorize every matrix from scratch.
+
+    Each :meth:`factorize` replaces the previous factorization made here: a
+    :class:`Factorization` it returned earlier must not be used after the next call.
+    """
+
+    def __init__(self, method: str = "auto"):
+        self.method = _resolve(method)
+        self._handle: _PardisoHandle | None = None
+        self.analyses = 0
+
+    def factorize(self, a: sp.spmatrix | sp.sparray) -> Factorization:
+        if self.method != "pardiso":
+            return factorize(a, self.method)
+        start = time.perf_counter()
+        a = sp.csr_matrix(a, dtype=np.float64)
+        _check_matrix(a)
+        upper = sp.triu(a, format="csr")
+        upper.sort_indices()
+        h = self._handle
+        dummy = np.zeros(a.shape[0])
+        if (h is not None and h.n == a.shape[0] and len(h.indices) == len(upper.indices)
+                and np.array_equal(h.indptr, upper.indptr)
+                and np.array_equal(h.indices, upper.indices)):
+            h.data[:] = upper.data
+            _pardiso_check(h.call(22, dummy, dummy), "factorization")
+        else:
+            h = self._handle = _PardisoHandle(a)
+            _pardiso_check(h.call(12, dummy, dummy), "factorization")
+            self.analyses += 1
+        solve = _pardiso_solve(h)
+        factorization = Factorization("pardiso", a.shape[0], solve)
+        factorization.probe_residual = _probe(a, solve, "pardiso")
+        factorization.factor_time = time.perf_counter() - start
+        return factorization

@@ -25,7 +25,7 @@ import scipy.sparse as sp
 
 from .errors import SolverError
 from .integrators import Implicit
-from .linalg import factorize
+from .linalg import Refactorizer, factorize
 from .material import MaterialLaw
 from .plasticity.return_map import PlasticState
 from .problem import Problem
@@ -183,8 +183,12 @@ class Constrained:
         self.free = np.flatnonzero(mask)
         self.method = method
 
-    def factorize(self, matrix: sp.csr_matrix):
+    def factorize(self, matrix: sp.csr_matrix, refactorizer: Refactorizer | None = None):
+        """Factorization of ``matrix`` on the free dofs (through ``refactorizer`` when given,
+        which reuses the symbolic analysis of its previous matrix)."""
         sub = matrix[self.free][:, self.free].tocsr()
+        if refactorizer is not None:
+            return refactorizer.factorize(sub)
         return factorize(sub, self.method)
 
 
@@ -266,6 +270,7 @@ class ImplicitStepper:
         # K's columns of the constrained dofs: the force of moving prescribed values
         self.fixed_columns = ops.stiffness.tocsc()[:, constrained.dofs].tocsr()
         self.factor = None  # elastic Jacobian's factorization, made on first use
+        self.tangents = None  # full Newton's refactorizer, made on first use
         self.factorizations = 0
 
     def jacobian(self, stiffness: sp.csr_matrix) -> sp.csr_matrix:
@@ -337,8 +342,10 @@ class ImplicitStepper:
                     )
                 if method == "newton" and law.plastic:
                     # refactorize only when the iterate is not yet converged
+                    if self.tangents is None:
+                        self.tangents = Refactorizer(self.constrained.method)
                     factor = self.constrained.factorize(
-                        self.jacobian(ops.strain_operator.stiffness(tangent)))
+                        self.jacobian(ops.strain_operator.stiffness(tangent)), self.tangents)
                     factorizations += 1
             correction = factor.solve(residual[free])
             solves += 1

@@ -116,3 +116,24 @@ def test_auto_picks_first_available(clamped):
 def test_wrong_rhs_shape(clamped):
     with pytest.raises(ValueError, match="right-hand side"):
         factorize(clamped, "superlu").solve(np.ones(clamped.shape[0] + 1))
+
+
+@pytest.mark.parametrize("method", METHODS)
+def test_refactorizer_reuses_the_analysis_of_one_pattern(clamped, method):
+    """Matrices with the pattern of the first are factorized numerically only (PARDISO: one
+    analysis), and every factorization solves its own matrix to round-off."""
+    from fem_frac.linalg import Refactorizer
+
+    refactorizer = Refactorizer(method)
+    rng = np.random.default_rng(3)
+    b = rng.standard_normal(clamped.shape[0])
+    for scale in (1.0, 2.0, 0.5):
+        a = clamped * scale + sp.diags(np.full(clamped.shape[0], scale * 1e3))
+        x = refactorizer.factorize(a).solve(b)
+        assert np.linalg.norm(a @ x - b) <= 1e-10 * np.linalg.norm(b)
+    if method == "pardiso":
+        assert refactorizer.analyses == 1
+        # another pattern (a diagonal) is analysed afresh and still solved right
+        d = sp.diags(np.arange(1.0, clamped.shape[0] + 1.0)).tocsr()
+        np.testing.assert_allclose(refactorizer.factorize(d).solve(b), b / d.diagonal())
+        assert refactorizer.analyses == 2
