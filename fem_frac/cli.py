@@ -1,4 +1,5 @@
-"""The ``fem-frac`` command: ``run`` a case, ``check`` it without solving.
+"""The ``fem-frac`` command: ``run`` a case, ``check`` it without solving, ``study`` a grid
+of runs (:mod:`fem_frac.study`).
 
 Exit codes: 0 success; 2 bad input (case file, mesh, options, a body left free to move), with
 a one-line message and no traceback; 3 a numerical failure (singular system, non-finite
@@ -18,6 +19,7 @@ EXAMPLES = """examples:
   fem-frac check cases/cantilever.yaml
   fem-frac run cases/cantilever.yaml
   fem-frac run cases/hollow_sphere.yaml -o results/sphere --set mesh.order=2
+  fem-frac study studies/elastic.yaml --workers 2
   paraview out/cantilever/cantilever.pvd
 """
 
@@ -67,6 +69,23 @@ def _parser() -> argparse.ArgumentParser:
         "quality, named boundary groups and the plan of stages that would run. No solve.",
     )
     common(check)
+
+    study = sub.add_parser(
+        "study",
+        help="sweep a case over a grid of settings: error against wall time, CSV and plot",
+        description="Run every combination of the grid of a study file (each in a process of "
+        "its own, as `fem-frac run` with --set overrides), then write study.csv (wall time, "
+        "peak memory, error per run), study.json (convergence rates, Pareto front) and "
+        "study.png (error against wall time, log-log; needs matplotlib). Runs whose "
+        "summary.json exists are kept, so an interrupted study resumes. See docs/studies.md.",
+    )
+    study.add_argument("study", type=Path, help="study file (YAML)")
+    study.add_argument("-o", "--output", metavar="DIR",
+                       help="output directory (default: out/<study file name>)")
+    study.add_argument("--workers", type=int, metavar="N",
+                       help="runs in parallel (default: workers of the study file, else the "
+                       "number of cores)")
+    study.add_argument("-q", "--quiet", action="store_true", help="print nothing but errors")
     return p
 
 
@@ -76,6 +95,8 @@ def main(argv: list[str] | None = None) -> int:
     if args.command is None:
         parser.print_help()
         return 2
+    if args.command == "study":
+        return _study(args)
     from .config import CaseErrors, load_case
 
     source = None
@@ -140,6 +161,41 @@ def _run(case, source, args) -> None:
     t = summary["wall_time_s"]
     log(f"done       max |u| = {summary['max_displacement']:.6g}, "
         f"strain energy = {summary['strain_energy']:.6g}, {t['total']:.2f} s")
+
+
+def _study(args) -> int:
+    from .config import CaseErrors
+    from .study import StudyErrors, load_study, run_study, write_outputs
+
+    if args.workers is not None and args.workers < 1:
+        print(f"error: --workers {args.workers}: must be >= 1", file=sys.stderr)
+        return 2
+    log = _log(args.quiet)
+    try:
+        study = load_study(args.study)
+    except (StudyErrors, CaseErrors) as exc:
+        for line in exc.lines():
+            print(f"error: {line}", file=sys.stderr)
+        return 2
+    except FemFracError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
+    out_dir = Path(args.output) if args.output else Path("out") / study.name
+    log(f"study      {args.study}: {len(study.runs)} runs of {study.case_path} -> {out_dir}")
+    try:
+        results = run_study(study, out_dir, args.workers, log)
+    except KeyboardInterrupt:
+        print("interrupted; finished runs are kept (run the study again to resume)",
+              file=sys.stderr)
+        return 130
+    outcome = write_outputs(study, results, out_dir)
+    for w in outcome.warnings:
+        print(f"warning: {w}", file=sys.stderr)
+    failed = [r for r in results if not r.ok]
+    log(f"done       {len(results) - len(failed)}/{len(results)} runs ok"
+        + (f", {len(failed)} failed (see study.csv)" if failed else "")
+        + f"; {outcome.csv}" + (f", {outcome.png}" if outcome.png else ""))
+    return 0
 
 
 if __name__ == "__main__":
