@@ -212,6 +212,7 @@ def load_study(path: str | Path) -> Study:
             continue
         if not values:
             errors.append(CaseError(("grid", name), "must list at least one value"))
+            axes.append(Axis(name, keys, ()))
             continue
         points = []
         for i, v in enumerate(values):
