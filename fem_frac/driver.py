@@ -335,6 +335,7 @@ def history_row(n: int, state: State, ledger: Ledger, info: StepInfo, problem: P
     else:
         row["yielded_points"] = 0
     row["iterations"] = info.iterations
+    row["cutbacks"] = info.cutbacks
     row["residual"] = info.residual
     row["wall_time"] = wall
     return row
@@ -365,6 +366,7 @@ def _summary(setup: Setup, case_path, state, ledger, counters, timer) -> dict:
             "dt": grid.dt,
             "t_end": grid.t_end,
             "iterations": counters.iterations,
+            "cutbacks": counters.cutbacks,
             "solves": counters.solves,
             "factorizations": counters.factorizations + (1 if counters.solver else 0),
             "max_relative_residual": counters.max_residual,

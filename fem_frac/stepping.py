@@ -98,6 +98,7 @@ class StepInfo:
     residual: float
     solves: int = 0
     factorizations: int = 0
+    cutbacks: int = 0
 
 
 @dataclass(frozen=True)
@@ -106,6 +107,11 @@ class Equilibrium:
     tolerance: float = 1e-8
     max_iterations: int = 500
     acceleration: str = "anderson"
+    cutbacks: int = 4
+
+
+class NotConverged(SolverError):
+    """Equilibrium iteration of one step stopped at its iteration cap."""
 
 
 # Past corrections Anderson mixing keeps (Walker & Ni 2011 use 1 to 10; 5 is a common choice).
@@ -149,6 +155,7 @@ class Counters:
     iterations: int = 0
     solves: int = 0
     factorizations: int = 0
+    cutbacks: int = 0
     max_residual: float = 0.0
     solver: str = ""
     seconds: dict = field(default_factory=dict)
@@ -266,6 +273,10 @@ class ImplicitStepper:
                  equilibrium: Equilibrium, constrained: Constrained):
         self.problem, self.law, self.ops = problem, law, ops
         self.scheme, self.equilibrium, self.constrained = scheme, equilibrium, constrained
+        # without inertia the step's matrix does not depend on its length, so a step that
+        # fails to converge can be split in halves (up to ``cutbacks`` times) at no
+        # refactorization; with inertia it would need a new factorization per length
+        self.cutbacks = 0 if (ops.mass is not None and scheme.inertia) else equilibrium.cutbacks
         self.elastic_jacobian = self.jacobian(ops.stiffness)
         # K's columns of the constrained dofs: the force of moving prescribed values
         self.fixed_columns = ops.stiffness.tocsc()[:, constrained.dofs].tocsr()
@@ -334,7 +345,7 @@ class ImplicitStepper:
                 if relative <= self.equilibrium.tolerance or method == "single_pass":
                     break
                 if iterations >= self.equilibrium.max_iterations:
-                    raise SolverError(
+                    raise NotConverged(
                         f"step {step} (t = {t:.6g}): equilibrium not reached in {iterations} "
                         f"iterations of {method} (relative residual {relative:.2e} > "
                         f"tolerance {self.equilibrium.tolerance:g}); take smaller steps, "
@@ -420,28 +431,52 @@ def march(stepper, state: State, times: np.ndarray, problem: Problem, law: Mater
     """Take the steps to ``times[1:]``; ``observe`` sees every committed step (and step 0).
 
     A stepper with ``substeps > 1`` takes that many equal steps per interval, each one
-    accounted in the energy ledger; ``observe`` sees the interval's end.
+    accounted in the energy ledger; ``observe`` sees the interval's end. A stepper with
+    ``cutbacks > 0`` halves a step whose equilibrium iteration fails, up to that many times.
     """
     ledger = initial_ledger(state, law, ops)
     observe(0, state, ledger, StepInfo(0, 0.0))
     substeps = getattr(stepper, "substeps", 1)
+    max_cutbacks = getattr(stepper, "cutbacks", 0)
     for n in range(1, len(times)):
         t0 = time.perf_counter()
         start, end = float(times[n - 1]), float(times[n])
-        iterations = 0
-        for k in range(1, substeps + 1):
-            t = end if k == substeps else start + (end - start) * k / substeps
-            # overflow becomes inf/NaN, which the steppers' finiteness checks stop at once
-            with np.errstate(over="ignore", invalid="ignore"):
-                new, info = stepper.step(state, t, n)
+        iterations = cutbacks = solves = factorizations = 0
+        # targets still to reach, the next one last; a step that does not converge is
+        # split in two by pushing its midpoint (cutback), down to 2^-max_cutbacks of it
+        pending = [end if k == substeps else start + (end - start) * k / substeps
+                   for k in range(substeps, 0, -1)]
+        shortest = (end - start) / substeps / 2**max_cutbacks
+        while pending:
+            t = pending[-1]
+            try:
+                # overflow becomes inf/NaN, which the steppers' finiteness checks stop at once
+                with np.errstate(over="ignore", invalid="ignore"):
+                    new, info = stepper.step(state, t, n)
+            except NotConverged as exc:
+                if max_cutbacks == 0:
+                    raise
+                if (t - state.t) / 2 < shortest * (1 - 1e-9):
+                    raise NotConverged(
+                        f"{exc} (after {cutbacks} cutbacks, down to a step of "
+                        f"{t - state.t:.3g}; the load may exceed what the structure carries)"
+                    ) from None
+                pending.append(0.5 * (state.t + t))
+                cutbacks += 1
+                continue
+            pending.pop()
             ledger = account(ledger, state, new, problem, law, ops)
             state = new
             iterations += info.iterations
-        info = replace(info, iterations=iterations)
+            solves += info.solves
+            factorizations += info.factorizations
+        info = replace(info, iterations=iterations, solves=solves,
+                       factorizations=factorizations, cutbacks=cutbacks)
         counters.steps += 1
         counters.iterations += info.iterations
         counters.solves += info.solves
         counters.factorizations += info.factorizations
+        counters.cutbacks += cutbacks
         counters.max_residual = max(counters.max_residual, info.residual)
         counters.seconds["steps"] = counters.seconds.get("steps", 0.0) + time.perf_counter() - t0
         observe(n, state, ledger, info)

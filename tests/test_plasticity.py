@@ -172,3 +172,50 @@ def test_anderson_acceleration_reaches_the_same_equilibrium_in_fewer_iterations(
     assert np.linalg.norm(plain[0] - fast[0]) <= 1e-7 * np.linalg.norm(plain[0])
     assert fast[1] < 0.6 * plain[1]
     assert fast[2] < 1e-8
+
+
+def sphere_in_one_step(pressure: float, cutbacks: int, max_iterations: int,
+                       method: str = "newton") -> dict:
+    """A perfectly plastic thick sphere (a = 1, b = 2: limit load 2 ln 2 sigma_Y = 1.386
+    sigma_Y) loaded in a single quasi-static step; linear tets with the averaged volumetric
+    strain (standard linear tets lock: on this coarse mesh they carry 1.6 sigma_Y)."""
+    return {
+        "mesh": {"geometry": {"type": "hollow_sphere", "inner_radius": 1.0,
+                              "outer_radius": 2.0, "sector": "octant"},
+                 "element_size": 0.35, "formulation": "averaged"},
+        "material": {"youngs_modulus": E, "poissons_ratio": NU},
+        "plasticity": {"yield_stress": SIGMA_Y},
+        "boundary_conditions": [
+            {"type": "symmetry", "boundary": f"symmetry_{a}"} for a in "xyz"
+        ] + [{"type": "pressure", "boundary": "inner", "pressure": pressure}],
+        "analysis": {"type": "quasi_static", "steps": 1,
+                     "equilibrium": {"method": method, "max_iterations": max_iterations,
+                                     "cutbacks": cutbacks}},
+    }
+
+
+def test_cutbacks_split_a_step_that_does_not_converge():
+    """1.25 sigma_Y (90 % of the limit load) at once is beyond what full Newton reaches in 6
+    iterations (it needs 7); halves of the step are within its convergence radius, and the
+    energy still balances (every sub-step enters the ledger). (Modified Newton gains little
+    from cutbacks: its rate depends on the yielded fraction more than on the increment.)"""
+    with pytest.raises(SolverError, match="equilibrium not reached"):
+        run(sphere_in_one_step(1.25 * SIGMA_Y, cutbacks=0, max_iterations=6))
+    seen = []
+    _, state, ledger, counters = run(
+        sphere_in_one_step(1.25 * SIGMA_Y, cutbacks=4, max_iterations=6),
+        observe=lambda n, s, led, info: seen.append(info))
+    assert counters.cutbacks >= 1 and seen[-1].cutbacks == counters.cutbacks
+    assert state.t == 1.0 and ledger.plastic_work > 0
+    assert ledger.relative_error < 1e-7
+
+
+def test_a_load_beyond_the_limit_load_stops_with_a_diagnostic():
+    """Above 2 ln 2 sigma_Y no equilibrium exists: cutbacks cannot help, the run stops and
+    says so, naming the step and the cutbacks tried."""
+    with pytest.raises(SolverError) as err:
+        run(sphere_in_one_step(1.6 * SIGMA_Y, cutbacks=3, max_iterations=60,
+                               method="modified_newton"))
+    message = str(err.value)
+    assert "step 1" in message and "after 3 cutbacks" in message
+    assert "exceed" in message

@@ -278,13 +278,16 @@ class Equilibrium(Section):
     left is reported, not reduced). ``tolerance`` bounds the residual norm relative to the
     largest force norm of the step. ``acceleration: anderson`` mixes the last iterates of
     modified Newton (Anderson acceleration), which cuts its iterations several-fold at the
-    cost of a few dot products; ``none`` is the plain iteration.
+    cost of a few dot products; ``none`` is the plain iteration. A static or quasi-static
+    step that does not converge in ``max_iterations`` is halved, up to ``cutbacks`` times,
+    before the run stops.
     """
 
     method: Literal["modified_newton", "newton", "single_pass"] = "modified_newton"
     acceleration: Literal["anderson", "none"] = "anderson"
     tolerance: PositiveFloat = 1e-8
     max_iterations: PositiveInt = 500
+    cutbacks: Annotated[int, Field(ge=0, le=20)] = 4
 
 
 class StaticAnalysis(Section):
