@@ -162,8 +162,11 @@ def _short(key: str) -> str:
 def method_label(settings: dict, method_keys: list[str]) -> str:
     if not method_keys:
         return "all runs"
-    return ", ".join(f"{_short(k)}={_value_text(settings[k]).strip(chr(34))}"
-                     for k in method_keys)
+    parts = []
+    for k in method_keys:
+        text = _value_text(settings[k]).strip('"')
+        parts.append(f"P{text}" if k == "mesh.order" else f"{_short(k)}={text}")
+    return ", ".join(parts)
 
 
 def _study_error(err: dict, data) -> CaseError:
@@ -227,8 +230,14 @@ def load_study(path: str | Path) -> Study:
             errors.append(CaseError(("grid", name), "lists a value twice"))
         axes.append(Axis(name, keys, tuple(points)))
     all_keys = [k for a in axes for k in a.keys]
+    by_axis = {a.name: a.keys for a in axes}
+    method_keys: list[str] = []
     for i, m in enumerate(spec.method):
-        if m not in all_keys:
+        if m in by_axis:  # an axis of several keys, named as in grid
+            method_keys += [k for k in by_axis[m] if k not in method_keys]
+        elif m in all_keys:
+            method_keys += [m] if m not in method_keys else []
+        else:
             errors.append(CaseError(("method", i), f"{m!r} is not a key of grid"
                                     + (f" (grid keys: {', '.join(all_keys)})" if all_keys else "")))
     if len(set(all_keys)) != len(all_keys):
@@ -255,7 +264,7 @@ def load_study(path: str | Path) -> Study:
             run_id=run_id(settings),
             settings=settings,
             overrides=tuple(f"{k}={_value_text(v)}" for k, v in settings.items()),
-            method=method_label(settings, spec.method),
+            method=method_label(settings, method_keys),
         ))
     return Study(path, spec, axes, runs, source)
 
@@ -637,7 +646,8 @@ def plot(study: Study, results: list[Result], path: Path) -> None:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    fig, ax = plt.subplots(figsize=(7.5, 5.2), dpi=120)
+    n_lines = len(methods(results)) + 1
+    fig, ax = plt.subplots(figsize=(7.5, 5.0 + 0.2 * n_lines), dpi=120)
     rate = rates(results)
     markers = itertools.cycle("osD^v<>ph*")
     against = "h" if SIZE_KEY in study.keys else "dofs^(-1/3)"
@@ -647,7 +657,7 @@ def plot(study: Study, results: list[Result], path: Path) -> None:
         if not group:
             continue
         k = rate.get(m)
-        label = f"{m}: rate {k:.2f} (error ~ {against}^rate)" if k is not None else m
+        label = f"{m}: rate {k:.2f}" if k is not None else f"{m}: rate -"
         ax.plot([r.wall_s for r in group], [r.error for r in group], marker=next(markers),
                 label=label)
         for r in group:
@@ -671,9 +681,10 @@ def plot(study: Study, results: list[Result], path: Path) -> None:
         ax.set_ylabel(f"relative error of {quantity}\n(against Richardson extrapolation)")
     ax.set_title(study.spec.title or study.name, fontsize=10)
     ax.grid(True, which="both", alpha=0.3)
-    ax.legend(fontsize=7.5)
-    fig.tight_layout()
-    fig.savefig(path)
+    ax.legend(fontsize=7.5, loc="upper center", bbox_to_anchor=(0.5, -0.13), frameon=False,
+              title=f"fitted rate: slope of log error against log {against}",
+              title_fontsize=7.5)
+    fig.savefig(path, bbox_inches="tight")
     plt.close(fig)
 
 

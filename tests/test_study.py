@@ -69,7 +69,7 @@ def test_csv_rows_and_columns(done):
                 "time_factorize_s", "peak_mib", "quantity", "value", "error"):
         assert col in rows[0], col
     for r in rows:
-        assert r["status"] == "ok" and r["method"] == "order=1"
+        assert r["status"] == "ok" and r["method"] == "P1"
         assert float(r["wall_time_s"]) > 0 and float(r["peak_mib"]) > 10
         assert 0 < float(r["error"]) < 1
         assert (out / "runs" / r["run_id"] / "summary.json").is_file()
@@ -77,7 +77,7 @@ def test_csv_rows_and_columns(done):
     assert dofs == sorted(dofs)
     assert float(rows[-1]["error"]) < float(rows[0]["error"])  # refining helps
     info = json.loads((out / "study.json").read_text())
-    assert info["rates"]["order=1"] > 0  # P1 in bending, coarse: locked, slow
+    assert info["rates"]["P1"] > 0  # P1 in bending, coarse: locked, slow
     assert info["pareto_front"]
 
 
@@ -155,13 +155,13 @@ def test_grid_expansion_and_ids(tmp_path):
     study = STUDY.replace("  mesh.order: [1]\n", '  "mesh.order,mesh.formulation": '
                           "[[1, standard], [1, averaged], [2, standard]]\n")
     s = load_study(_write(tmp_path, study.replace("method: [mesh.order]",
-                                                  "method: [mesh.order, mesh.formulation]")))
+                                                  "method: [\"mesh.order,mesh.formulation\"]")))
     assert len(s.runs) == 9
     assert s.runs[3].settings == {"mesh.order": 1, "mesh.formulation": "averaged",
                                   "mesh.element_size": 0.25}
     assert s.runs[3].overrides == ('mesh.order=1', 'mesh.formulation="averaged"',
                                    "mesh.element_size=0.25")
-    assert s.runs[3].method == "order=1, formulation=averaged"
+    assert s.runs[3].method == "P1, formulation=averaged"
     assert len({r.run_id for r in s.runs}) == 9
     assert run_id({"a.b": 1, "c": 0.5}) == run_id({"a.b": 1, "c": 0.5}) == "a.b=1_c=0.5"
     odd = run_id({"boundary_conditions[1].pressure": 2e6})
