@@ -619,7 +619,7 @@ def write_csv(study: Study, results: list[Result], path: Path) -> None:
 def _fmt(x) -> str:
     if x is None:
         return ""
-    return f"{x:.6g}" if isinstance(x, float) else str(x)
+    return f"{x:.10g}" if isinstance(x, float) else str(x)
 
 
 def study_json(study: Study, results: list[Result]) -> dict:

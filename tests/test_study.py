@@ -4,6 +4,7 @@ Richardson extrapolation."""
 import csv
 import json
 import math
+import sys
 import textwrap
 
 import numpy as np
@@ -33,7 +34,7 @@ STUDY = textwrap.dedent(
     method: [mesh.order]
     grid:
       mesh.order: [1]
-      mesh.element_size: [0.25, 0.18, 0.125]
+      mesh.element_size: [0.2, 0.14, 0.098]
     error: reference
     workers: 2
     """
@@ -64,7 +65,7 @@ def done(tmp_path_factory):
 def test_csv_rows_and_columns(done):
     _, out = done
     rows = _rows(out / "study.csv")
-    assert [r["mesh.element_size"] for r in rows] == ["0.25", "0.18", "0.125"]
+    assert [r["mesh.element_size"] for r in rows] == ["0.2", "0.14", "0.098"]
     for col in ("run_id", "mesh.order", "method", "status", "dofs", "h", "wall_time_s",
                 "time_factorize_s", "peak_mib", "quantity", "value", "error"):
         assert col in rows[0], col
@@ -106,8 +107,41 @@ def test_resume_skips_finished_runs(done, capsys):
     assert len(_rows(out / "study.csv")) == 3
 
 
+def test_quantity_error_by_richardson(done):
+    path, out = done  # the same runs, compared by a summary quantity: nothing is rerun
+    qpath = path.with_name("q.yaml")
+    qpath.write_text(path.read_text().replace("error: reference",
+                                              "error: {quantity: max_displacement}"))
+    assert main(["study", str(qpath), "-o", str(out), "-q"]) == 0
+    rows = _rows(out / "study.csv")
+    assert [r["quantity"] for r in rows] == ["max_displacement"] * 3
+    ex = json.loads((out / "study.json").read_text())["extrapolation"]["P1"]
+    assert ex["method"] in ("richardson", "finest"), ex
+    if ex["method"] == "richardson":
+        assert abs(ex["ratio"] - 0.2 / 0.14) < 1e-9 and ex["order"] > 0
+    for r in rows:
+        assert float(r["reference_value"]) == pytest.approx(ex["value"], rel=1e-9)
+        v = float(r["value"])
+        assert float(r["error"]) == pytest.approx(abs(v - ex["value"]) / abs(ex["value"]),
+                                                  rel=1e-6, abs=1e-8)
+
+
+def test_without_matplotlib(done, monkeypatch, capsys):
+    path, out = done
+    (out / "study.png").unlink()
+    (out / "study.csv").unlink()
+    monkeypatch.setitem(sys.modules, "matplotlib", None)  # import matplotlib -> ImportError
+    assert main(["study", str(path), "-o", str(out), "-q"]) == 0
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "pip install 'fem-frac[study]'" in err[0], err
+    assert (out / "study.csv").is_file() and not (out / "study.png").exists()
+    monkeypatch.undo()
+    assert main(["study", str(path), "-o", str(out), "-q"]) == 0  # leave the plot for others
+    assert (out / "study.png").is_file()
+
+
 def test_failed_run_recorded(tmp_path, capsys):
-    study = STUDY.replace("mesh.element_size: [0.25, 0.18, 0.125]",
+    study = STUDY.replace("mesh.element_size: [0.2, 0.14, 0.098]",
                           "mesh.element_size: [0.25]\n  material.poissons_ratio: [0.3, 0.7]")
     path = _write(tmp_path, study)
     assert main(["study", str(path), "-o", str(tmp_path / "out"), "--workers", "2"]) == 0
@@ -158,9 +192,9 @@ def test_grid_expansion_and_ids(tmp_path):
                                                   "method: [\"mesh.order,mesh.formulation\"]")))
     assert len(s.runs) == 9
     assert s.runs[3].settings == {"mesh.order": 1, "mesh.formulation": "averaged",
-                                  "mesh.element_size": 0.25}
+                                  "mesh.element_size": 0.2}
     assert s.runs[3].overrides == ('mesh.order=1', 'mesh.formulation="averaged"',
-                                   "mesh.element_size=0.25")
+                                   "mesh.element_size=0.2")
     assert s.runs[3].method == "P1, formulation=averaged"
     assert len({r.run_id for r in s.runs}) == 9
     assert run_id({"a.b": 1, "c": 0.5}) == run_id({"a.b": 1, "c": 0.5}) == "a.b=1_c=0.5"
