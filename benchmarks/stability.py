@@ -4,10 +4,11 @@ variants listed in tests/test_stability.py, run through the command line.
     python benchmarks/stability.py                 # the tables of docs/stability.md (~40 s)
     python benchmarks/stability.py --write-meshes  # regenerate the committed mesh files
 
-For each run: exit code, maximum displacement and energy-ledger error (summary.json, else
-the last row of history.csv), iterations, and the one-line message of a refusal or a
-numerical stop. A second table gives the stable step of central difference (``fem-frac
-check``) of the dynamic and sliver cases.
+For each run: exit code, maximum displacement (summary.json, else the last committed step of
+history.csv), the largest energy-ledger error over the committed steps, iterations, the
+relative residual of the last committed step, and the one-line message of a refusal or a
+numerical stop. Blank: no step was committed. A second table gives the stable step of
+central difference (``fem-frac check``) of the dynamic and sliver cases.
 """
 
 from __future__ import annotations
@@ -111,12 +112,11 @@ def row(scene: str, case: Path, label: str, overrides: list[str], out: Path) -> 
     t = time.perf_counter()
     r = run_cli(case, overrides, out)
     wall = time.perf_counter() - t
-    message = r.message.replace("|", "/")
-    if len(message) > 220:
-        message = message[:217] + "..."
+    message = r.message.replace(f"{case.parent}/", "").replace("|", "/")
+    residual = r.history["residual"][-1] if r.steps > 1 else None
     return (f"| {scene} | {case.stem} | {label} | {r.code} | {_fmt(r.max_displacement, '.4g')} "
-            f"| {_fmt(r.energy_error, '.1e')} | {_fmt(r.iterations, 'd')} | {message} "
-            f"| {wall:.1f} |")
+            f"| {_fmt(r.energy_error, '.1e')} | {_fmt(r.iterations, 'd')} "
+            f"| {_fmt(residual, '.1e')} | {message} | {wall:.1f} |")
 
 
 def main() -> None:
@@ -128,8 +128,8 @@ def main() -> None:
         write_meshes(CASES)
         return
     print("| scene | case | variant | exit | max abs(u) | energy error (rel.) | iterations "
-          "| message | wall s |")
-    print("|---|---|---|---|---|---|---|---|---|")
+          "| last residual | message | wall s |")
+    print("|---|---|---|---|---|---|---|---|---|---|")
     listed = {s.case for s in SCENES}
     extra = sorted(p.stem for p in CASES.glob("*.yaml") if p.stem not in listed)
     with tempfile.TemporaryDirectory() as tmp:

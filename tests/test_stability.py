@@ -49,22 +49,22 @@ class Result:
 
     @property
     def max_displacement(self) -> float | None:
+        """At the final time (summary.json), else at the last step committed after step 0."""
         if self.summary is not None:
             return self.summary["max_displacement"]
-        if self.steps:
-            return self.history["max_displacement"][-1]
-        return None
+        return self.history["max_displacement"][-1] if self.steps > 1 else None
 
     @property
     def energy_error(self) -> float | None:
-        """The largest relative ledger error over the committed steps."""
-        return max(self.history["energy_error_relative"]) if self.steps else None
+        """The largest relative ledger error over the steps committed after step 0."""
+        return max(self.history["energy_error_relative"]) if self.steps > 1 else None
 
     @property
     def iterations(self) -> int | None:
+        """Over the committed steps (a step that failed is not in the history)."""
         if self.summary is not None:
             return int(self.summary["analysis"]["iterations"])
-        return int(sum(self.history["iterations"])) if self.steps else None
+        return int(sum(self.history["iterations"])) if self.steps > 1 else None
 
 
 def run_cli(case: Path, overrides: list[str], out: Path) -> Result:
@@ -148,7 +148,9 @@ class Scene:
 
 
 E_SOFT = "material.youngs_modulus=2e11"
-STATIC = "analysis={type: static}"
+# the static reference of the dynamic beam: its load on the default (ramp) curve, see
+# test_load_applied_at_once_in_a_quasi_static_analysis_balances_the_ledger
+STATIC = ["analysis={type: static}", "boundary_conditions[1].curve=ramp"]
 P1, AVERAGED, P2 = (["mesh.order=1", "mesh.formulation=standard"],
                     ["mesh.order=1", "mesh.formulation=averaged"],
                     ["mesh.order=2", "mesh.formulation=standard"])
@@ -157,6 +159,7 @@ NEWTON = "analysis.equilibrium.method=newton"
 MODIFIED = "analysis.equilibrium.method=modified_newton"
 SINGLE = "analysis.equilibrium.method=single_pass"
 AT_1_3_PY = "boundary_conditions[1].traction=[0, 0, -5.42e6]"  # 1.3 P_y, below collapse
+AT_ONCE = ["analysis={type: quasi_static, steps: 1}", "boundary_conditions[1].curve=constant"]
 
 SCENES = (
     Scene("1", "stiff_material", (("E = 1e12", []), ("E = 2e11", [E_SOFT]))),
@@ -164,14 +167,15 @@ SCENES = (
         (f"nu = {nu}, {name}", [*form, NU + nu])
         for nu in ("0.499", "0.4999")
         for name, form in (("P1 standard", P1), ("P1 averaged", AVERAGED), ("P2", P2)))),
-    Scene("3", "implicit_large_dt", (("Newmark, dt 5e-3", []), ("static reference", [STATIC]))),
+    Scene("3", "implicit_large_dt", (("Newmark, dt 5e-3", []), ("static reference", STATIC))),
     Scene("4", "explicit_above_limit", (("dt 2e-5", []),
                                         ("substeps: true", ["analysis.substeps=true"]))),
     Scene("5", "instant_overload", (
         ("10 P_y, modified Newton (default)", []),
         ("10 P_y, newton", [NEWTON]),
         ("10 P_y, single_pass", [SINGLE]),
-        ("1.3 P_y, one step", [AT_1_3_PY]))),
+        ("1.3 P_y, one static step", [AT_1_3_PY]),
+        ("1.3 P_y, quasi-static, constant curve", [AT_1_3_PY, *AT_ONCE]))),
     Scene("6", "tiny_yield_stress", (
         ("sigma_Y = 1 Pa, newton, tol 1e-6", []),
         ("sigma_Y = 1 Pa, newton, tol 1e-8", ["analysis.equilibrium.tolerance=1e-8"]),
@@ -289,7 +293,7 @@ def test_near_incompressible_locking_grows_with_nu_only_for_standard_p1(tmp_path
 
 @cache
 def _beam_static_energy(tmp: str) -> float:
-    r = run_cli(CASES / "implicit_large_dt.yaml", [STATIC], Path(tmp) / "static")
+    r = run_cli(CASES / "implicit_large_dt.yaml", STATIC, Path(tmp) / "static")
     finite_run(r)
     return r.summary["strain_energy"]
 
@@ -411,6 +415,24 @@ def test_load_below_collapse_applied_at_once_converges(tmp_path):
     assert r.history["residual"][-1] <= 1e-8
     assert r.summary["yielded_points"] > 0
     assert max(r.history["energy_error_relative"]) < 1e-6
+
+
+@pytest.mark.xfail(strict=True, reason="a load on the 'constant' curve in a static or "
+                   "quasi-static analysis: step 0 (u = 0) is out of equilibrium with the full "
+                   "load, the trapezoidal work of the first step counts f.u and the ledger "
+                   "reports energy_error_relative = 0.5, against the README's 'zero up to the "
+                   "equilibrium tolerance' (open item in docs/stability.md)")
+def test_load_applied_at_once_in_a_quasi_static_analysis_balances_the_ledger(tmp_path):
+    """1.3 P_y applied at t = 0 (curve constant), one quasi-static step. Without inertia the
+    path from the unloaded state is not part of the model; the converged end state is the
+    same as with a ramp (it is: same displacement), and the ledger of a converged static or
+    quasi-static run must balance to the equilibrium tolerance (README, history.csv)."""
+    at_once = run_cli(OVERLOAD, [AT_1_3_PY, *AT_ONCE], tmp_path / "once")
+    ramped = run_cli(OVERLOAD, [AT_1_3_PY], tmp_path / "ramp")
+    finite_run(at_once)
+    finite_run(ramped)
+    assert at_once.max_displacement == pytest.approx(ramped.max_displacement, rel=1e-6)
+    assert max(at_once.history["energy_error_relative"]) < 1e-6
 
 
 # --- 6. a yield stress near zero -----------------------------------------------------------
