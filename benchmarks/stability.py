@@ -1,14 +1,15 @@
 """The stability suite's table (docs/stability.md): every case of cases/stability/, with the
 variants listed in tests/test_stability.py, run through the command line.
 
-    python benchmarks/stability.py                 # the tables of docs/stability.md (~40 s)
+    python benchmarks/stability.py                 # the tables of docs/stability.md (~15 s)
     python benchmarks/stability.py --write-meshes  # regenerate the committed mesh files
 
 For each run: exit code, maximum displacement (summary.json, else the last committed step of
-history.csv), the largest energy-ledger error over the committed steps, iterations, the
-relative residual of the last committed step, and the one-line message of a refusal or a
-numerical stop. Blank: no step was committed. A second table gives the stable step of
-central difference (``fem-frac check``) of the dynamic and sliver cases.
+history.csv), the error against a declared exact reference (summary.json), the largest
+energy-ledger error over the committed steps, iterations, the relative residual of the last
+committed step, and the one-line message of a refusal or a numerical stop (paths relative
+to cases/stability/). Blank: no step was committed. A second table gives the stable step
+of central difference (``fem-frac check``) of the dynamic and sliver cases.
 """
 
 from __future__ import annotations
@@ -114,9 +115,12 @@ def row(scene: str, case: Path, label: str, overrides: list[str], out: Path) -> 
     wall = time.perf_counter() - t
     message = r.message.replace(f"{case.parent}/", "").replace("|", "/")
     residual = r.history["residual"][-1] if r.steps > 1 else None
+    reference = (r.summary or {}).get("reference")
+    exact = reference["relative_error"] if reference else None
     return (f"| {scene} | {case.stem} | {label} | {r.code} | {_fmt(r.max_displacement, '.4g')} "
-            f"| {_fmt(r.energy_error, '.1e')} | {_fmt(r.iterations, 'd')} "
-            f"| {_fmt(residual, '.1e')} | {message} | {wall:.1f} |")
+            f"| {_fmt(exact, '.3f')} | {_fmt(r.energy_error, '.1e')} "
+            f"| {_fmt(r.iterations, 'd')} | {_fmt(residual, '.1e')} | {message} "
+            f"| {wall:.1f} |")
 
 
 def main() -> None:
@@ -127,9 +131,9 @@ def main() -> None:
     if args.write_meshes:
         write_meshes(CASES)
         return
-    print("| scene | case | variant | exit | max abs(u) | energy error (rel.) | iterations "
-          "| last residual | message | wall s |")
-    print("|---|---|---|---|---|---|---|---|---|---|")
+    print("| scene | case | variant | exit | max abs(u) | error vs exact | energy error (rel.) "
+          "| iterations | last residual | message | wall s |")
+    print("|---|---|---|---|---|---|---|---|---|---|---|")
     listed = {s.case for s in SCENES}
     extra = sorted(p.stem for p in CASES.glob("*.yaml") if p.stem not in listed)
     with tempfile.TemporaryDirectory() as tmp:
