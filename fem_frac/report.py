@@ -85,7 +85,7 @@ def _time_step_lines(case: Case, model) -> list[str]:
     verdict = ""
     if analysis.integrator == "central_difference":
         substeps = explicit_substeps(limit, dt, analysis.substeps)  # refuses as run does
-        verdict = (f"; dt {dt:.4g} is {dt / limit.dt:.2f} of it" if substeps == 1
+        verdict = (f"; dt {dt:.4g} is {dt / limit.dt:.3g} of it" if substeps == 1
                    else f"; dt {dt:.4g} runs as {substeps} substeps")
     return [
         f"time step   stable step of central difference {limit.dt:.4g} "

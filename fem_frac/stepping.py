@@ -355,8 +355,17 @@ class ImplicitStepper:
                     # refactorize only when the iterate is not yet converged
                     if self.tangents is None:
                         self.tangents = Refactorizer(self.constrained.method)
-                    factor = self.constrained.factorize(
-                        self.jacobian(ops.strain_operator.stiffness(tangent)), self.tangents)
+                    try:
+                        factor = self.constrained.factorize(
+                            self.jacobian(ops.strain_operator.stiffness(tangent)),
+                            self.tangents)
+                    except SolverError:
+                        raise NotConverged(
+                            f"step {step} (t = {t:.6g}): the consistent tangent became "
+                            f"singular after {iterations} iterations of newton (relative "
+                            f"residual {relative:.2e}): the plastic zone forms a mechanism, "
+                            "the load is at or beyond what the structure carries"
+                        ) from None
                     factorizations += 1
             correction = factor.solve(residual[free])
             solves += 1
