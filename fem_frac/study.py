@@ -75,6 +75,11 @@ class StudyFile(_Section):
     grid: dict[str, list[Any]]
     error: ErrorSpec | None = None  # None: the case's declared reference
     workers: Annotated[int, Field(gt=0)] | None = None
+    refinement: str = Field(
+        default=SIZE_KEY,
+        description="the grid key that is the discretization size h of rates and Richardson "
+        "extrapolation: mesh.element_size (default) or analysis.dt for a time-step study",
+    )
 
     @field_validator("error", mode="before")
     @classmethod
@@ -104,10 +109,11 @@ class Run:
     settings: dict  # key -> value, in grid order
     overrides: tuple[str, ...]
     method: str
+    size_key: str = SIZE_KEY
 
     @property
     def size(self) -> float | None:
-        v = self.settings.get(SIZE_KEY)
+        v = self.settings.get(self.size_key)
         return float(v) if isinstance(v, int | float) else None
 
 
@@ -265,6 +271,7 @@ def load_study(path: str | Path) -> Study:
             settings=settings,
             overrides=tuple(f"{k}={_value_text(v)}" for k, v in settings.items()),
             method=method_label(settings, method_keys),
+            size_key=spec.refinement,
         ))
     return Study(path, spec, axes, runs, source)
 
@@ -372,7 +379,8 @@ class Result:
 
     @property
     def h(self) -> float | None:
-        """Mesh size of the run: ``mesh.element_size`` if swept, else dofs^(-1/3)."""
+        """Discretization size of the run: the study's ``refinement`` key if swept (default
+        ``mesh.element_size``), else dofs^(-1/3)."""
         if self.run.size is not None:
             return self.run.size
         return self.dofs ** (-1 / 3) if self.dofs else None
@@ -631,7 +639,8 @@ def study_json(study: Study, results: list[Result]) -> dict:
         "runs": len(results),
         "failed": [r.run.run_id for r in results if not r.ok],
         "rates": rates(results),
-        "rate_against": "mesh.element_size" if SIZE_KEY in study.keys else "dofs^(-1/3)",
+        "rate_against": (study.spec.refinement if study.spec.refinement in study.keys
+                         else "dofs^(-1/3)"),
         "extrapolation": {m: {"value": e.value, "method": e.method, "order": e.order,
                               "ratio": e.ratio, "note": e.note} for m, e in refs.items()},
         "pareto_front": [r.run.run_id for r in pareto_front(results)],
@@ -650,7 +659,8 @@ def plot(study: Study, results: list[Result], path: Path) -> None:
     fig, ax = plt.subplots(figsize=(7.5, 5.0 + 0.2 * n_lines), dpi=120)
     rate = rates(results)
     markers = itertools.cycle("osD^v<>ph*")
-    against = "h" if SIZE_KEY in study.keys else "dofs^(-1/3)"
+    against = (("dt" if study.spec.refinement == "analysis.dt" else "h")
+               if study.spec.refinement in study.keys else "dofs^(-1/3)")
     for m in methods(results):
         group = sorted((r for r in results if r.run.method == m and _plottable(r)),
                        key=lambda r: -r.h)
@@ -661,7 +671,7 @@ def plot(study: Study, results: list[Result], path: Path) -> None:
         ax.plot([r.wall_s for r in group], [r.error for r in group], marker=next(markers),
                 label=label)
         for r in group:
-            text = f"h={r.run.size:g}" if r.run.size is not None else f"{r.dofs:,} dofs"
+            text = f"{against}={r.run.size:g}" if r.run.size is not None else f"{r.dofs:,} dofs"
             ax.annotate(text, (r.wall_s, r.error), textcoords="offset points", xytext=(5, 4),
                         fontsize=7, color="0.3")
     front = pareto_front(results)

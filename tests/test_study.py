@@ -236,3 +236,19 @@ def test_rate_and_pareto():
     runs = [R(1, 0.1), R(2, 0.2), R(3, 0.01), R(0.5, 0.5), R(4, 0.01)]
     assert [(r.wall_s, r.error) for r in pareto_front(runs)] == [(0.5, 0.5), (1, 0.1),
                                                                   (3, 0.01)]
+
+
+def test_refinement_key_sets_the_size_of_a_time_step_study(tmp_path):
+    """With ``refinement: analysis.dt`` the runs' size h is their time step."""
+    from pathlib import Path
+
+    study_file = tmp_path / "dt.yaml"
+    case = Path(__file__).parent.parent / "cases" / "vibrating_beam.yaml"
+    study_file.write_text(
+        f"case: {case}\n"
+        "grid:\n  analysis.dt: [1.0e-4, 5.0e-5]\n"
+        "error: {quantity: max_displacement}\n"
+        "refinement: analysis.dt\n"
+    )
+    study = load_study(study_file)
+    assert [r.size for r in study.runs] == [1.0e-4, 5.0e-5]
