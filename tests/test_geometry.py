@@ -333,3 +333,13 @@ def test_bad_geo_raises_mesh_error(tmp_path, text, message):
     with pytest.raises(MeshError, match=message) as info:
         from_geo_file(geo, 0.5, 1)
     assert "\n" not in str(info.value)
+
+
+def test_a_part_one_element_thick_gets_no_flat_tets():
+    """HXT leaves a flat tet (four coplanar corners, quality ~1e-14) in a 1 x 0.05 x 0.05 box
+    meshed at 0.05; the mesher falls back on Delaunay there, whose tets are all sound."""
+    from fem_frac.mesh.geometry import build
+    from fem_frac.mesh.mesh import min_dihedral_angles
+
+    m = build("box", {"lengths": (1.0, 0.05, 0.05), "origin": (0, 0, 0)}, 0.05, 1)
+    assert min_dihedral_angles(m.points, m.tets).min() > 1.0

@@ -36,6 +36,12 @@ from .reader import curved_edges, outward_boundaries
 
 #: ``Mesh.Algorithm3D``: 10 = HXT (fast; repeatable single-threaded), 1 = Delaunay.
 ALGORITHM_3D = 10
+#: Tets whose gmsh quality (minimum signed inverse condition number, 1 for a regular tet) is
+#: below this are degenerate (flat): HXT can leave one where a part is a single element
+#: thick; the mesh is then redone with the Delaunay algorithm, which removes slivers.
+DEGENERATE_QUALITY = 1e-6
+#: ``Mesh.Algorithm3D`` of the fallback: 1 = Delaunay.
+FALLBACK_ALGORITHM_3D = 1
 #: Elements per 2*pi of curvature on curved surfaces (``Mesh.MeshSizeFromCurvature``): a
 #: sphere meshed with h > 2*pi*R/12 still gets a sensible facetting.
 CURVATURE_ELEMENTS = 12
@@ -101,6 +107,16 @@ def mesh_current_model(
         gmsh.option.setNumber("Mesh.ElementOrder", 1)  # a .geo may ask for 2: we do it below
         gmsh.model.mesh.clear()
         gmsh.model.mesh.generate(3)
+        if _degenerate_tets() and algorithm_3d != FALLBACK_ALGORITHM_3D:
+            gmsh.option.setNumber("Mesh.Algorithm3D", FALLBACK_ALGORITHM_3D)
+            gmsh.model.mesh.clear()
+            gmsh.model.mesh.generate(3)
+        bad = _degenerate_tets()
+        if bad:
+            raise MeshError(
+                f"gmsh produced {bad} degenerate (flat) tetrahedra; a part of the geometry is "
+                "about one element thick: use a smaller element_size"
+            )
         if order == 2:
             gmsh.model.mesh.setOrder(2)
         return model_to_mesh(order)
@@ -108,6 +124,17 @@ def mesh_current_model(
         raise
     except Exception as exc:  # gmsh raises bare Exception with its last error message
         raise MeshError(f"gmsh failed to mesh the geometry: {_one_line(exc)}") from None
+
+
+def _degenerate_tets() -> int:
+    """Number of linear tets of the current gmsh mesh below ``DEGENERATE_QUALITY``."""
+    import gmsh
+
+    tags, _ = gmsh.model.mesh.getElementsByType(_TET)
+    if len(tags) == 0:
+        return 0
+    quality = np.abs(gmsh.model.mesh.getElementQualities(tags, "minSICN"))
+    return int(np.count_nonzero(quality < DEGENERATE_QUALITY))
 
 
 def model_to_mesh(order: int = 1) -> Mesh:
