@@ -22,7 +22,7 @@ from .material import MaterialLaw, material_law
 from .mesh.build import build_mesh
 from .mesh.mesh import Mesh
 from .problem import Problem, build_problem, free_rigid_modes
-from .reference import check_reference, reference_error
+from .reference import Recorder, check_reference, reference_error
 from .stepping import (
     Constrained,
     Counters,
@@ -249,10 +249,12 @@ def run_case(
     writer = SeriesWriter(out_dir, name)
     output = OutputPlan(case.analysis, setup.grid.steps)
     progress = Progress(log, setup.grid.steps)
+    recorder = Recorder(setup)
     with HistoryWriter(out_dir / "history.csv") as history:
 
         def observe(n: int, st: State, ledger: Ledger, info: StepInfo) -> None:
             history.write(history_row(n, st, ledger, info, problem, timer.total()))
+            recorder(n, st)
             if output.due(n):
                 with timer("output"):
                     write_step(writer, space, st, setup.dynamic)
@@ -261,7 +263,7 @@ def run_case(
         state, ledger, counters = simulate(setup, timer, observe, log)
     summary = _summary(setup, case_path, state, ledger, counters, timer)
     if case.reference is not None:
-        summary["reference"] = reference_error(setup, state)
+        summary["reference"] = reference_error(setup, state, recorder)
         ref = summary["reference"]
         log(f"reference  {ref['solution']}: {ref['quantity']} {ref['computed']:.6g}, exact "
             f"{ref['exact']:.6g}, relative error {ref['relative_error']:+.3e}")

@@ -13,6 +13,12 @@ compares, its exact value from :mod:`fem_frac.exact`, and the run's error, repor
 - ``uniaxial_bar``: a box with ``symmetry`` on ``xmin ymin zmin`` and an x ``displacement``
   on ``xmax``. Axial stress (the ``xmax`` reaction over the face's area) against the exact
   1D elastoplastic path along the same steps.
+- ``free_vibration``: a dynamic box along x, ``fixed`` on ``xmin``, set moving along x by a
+  uniform initial velocity, elastic: the fixed-free bar rings in its axial modes. Period of
+  the fundamental, from the zero crossings of the ``xmin`` reaction (a square wave of
+  period 4 L / c in 1D theory), against 4 L / sqrt(E / rho). The 3D bar differs from 1D
+  theory by the lateral inertia of its Poisson contraction (Rayleigh-Love), a relative
+  O((nu pi r / (2 L))^2) for the fundamental, r the section's radius of gyration.
 
 A reference that does not fit the case is a :class:`CaseError` at ``reference.solution``,
 raised before the solve.
@@ -64,6 +70,14 @@ def check_reference(case: schema.Case) -> None:
                   and case.plasticity.kinematic_hardening == 0, name,
                   "perfect plasticity (no hardening)")
             _need(geometry.sector == "octant", name, "the octant sector")
+    elif name == "free_vibration":
+        _need(isinstance(geometry, schema.BoxGeometry), name, "a box geometry")
+        _need(isinstance(case.analysis, schema.DynamicAnalysis), name, "a dynamic analysis")
+        _need(_by_type(case, schema.Fixed, "xmin") is not None, name, "fixed on 'xmin'")
+        v0 = getattr(case.analysis, "initial_velocity", None)
+        _need(v0 is not None and v0.uniform[0] != 0 and v0.uniform[1] == v0.uniform[2] == 0
+              and not any(v0.angular_velocity), name, "a uniform initial velocity along x")
+        _need(case.plasticity is None, name, "an elastic material")
     elif name == "uniaxial_bar":
         _need(isinstance(geometry, schema.BoxGeometry), name, "a box geometry")
         for face in ("xmin", "ymin", "zmin"):
@@ -73,8 +87,42 @@ def check_reference(case: schema.Case) -> None:
         _need(d is not None and d.x is not None, name, "an x displacement on 'xmax'")
 
 
-def reference_error(setup, state) -> dict:
-    """``{solution, quantity, computed, exact, relative_error}`` of the final state."""
+class Recorder:
+    """What a reference needs from every step (the ``xmin`` reaction of ``free_vibration``);
+    call it with each committed ``(n, state)``."""
+
+    def __init__(self, setup):
+        problem = setup.model.problem
+        self.needed = (setup.case.reference is not None
+                       and setup.case.reference.solution == "free_vibration")
+        self.times: list[float] = []
+        self.signal: list[float] = []
+        if self.needed:
+            fixed = problem.constraints.dofs
+            group = problem.reaction_groups["xmin"]
+            self._rows = np.searchsorted(fixed, group[0::3])
+
+    def __call__(self, n: int, state) -> None:
+        if self.needed:
+            self.times.append(state.t)
+            self.signal.append(float(state.reaction[self._rows].sum()))
+
+
+def fundamental_period(times, signal) -> float:
+    """Twice the mean spacing of the zero crossings of ``signal`` (linear interpolation
+    between samples; the first sample, at rest, is skipped); ``nan`` below three
+    crossings."""
+    t, s = np.asarray(times[1:], dtype=float), np.asarray(signal[1:], dtype=float)
+    k = np.flatnonzero(np.sign(s[:-1]) * np.sign(s[1:]) < 0)
+    if len(k) < 3:
+        return float("nan")
+    crossings = t[k] - s[k] * (t[k + 1] - t[k]) / (s[k + 1] - s[k])
+    return float(2.0 * np.mean(np.diff(crossings)))
+
+
+def reference_error(setup, state, recorder: Recorder | None = None) -> dict:
+    """``{solution, quantity, computed, exact, relative_error}`` of the run (final state,
+    or the recorded steps)."""
     case = setup.case
     name = case.reference.solution
     space, problem = setup.model.space, setup.model.problem
@@ -115,6 +163,14 @@ def reference_error(setup, state) -> dict:
         u = state.u.reshape(-1, 3)[outer]
         computed = float(np.mean(np.sum(u * d[outer], axis=1) / r[outer]))
         quantity = "outer radial displacement"
+    elif name == "free_vibration":
+        length = case.mesh.geometry.lengths[0]
+        value = 4.0 * length / np.sqrt(e / case.material.density)
+        computed = fundamental_period(recorder.times, recorder.signal)
+        if not np.isfinite(computed):
+            raise CaseError(("analysis", "t_end"), "reference 'free_vibration' needs at least "
+                            f"1.5 periods (4 L / c = {value:.4g}) in the run")
+        quantity = "period of the fundamental axial mode"
     else:  # uniaxial_bar
         lengths = case.mesh.geometry.lengths
         area = lengths[1] * lengths[2]

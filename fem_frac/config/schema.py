@@ -391,7 +391,8 @@ class Reference(Section):
     """An exact solution the case is compared against; the error is reported in
     summary.json (see fem_frac/reference.py for what each compares)."""
 
-    solution: Literal["cantilever", "lame_sphere", "hill_sphere", "uniaxial_bar"]
+    solution: Literal["cantilever", "lame_sphere", "hill_sphere", "uniaxial_bar",
+                      "free_vibration"]
 
 
 UNIT_SYSTEMS = ("SI", "mm-N-s")
