@@ -23,6 +23,7 @@ from .mesh.build import build_mesh
 from .mesh.mesh import Mesh
 from .problem import Problem, build_problem, free_rigid_modes
 from .reference import Recorder, check_reference, reference_error
+from .regions import ElementMaterials, element_materials
 from .stepping import (
     Constrained,
     Counters,
@@ -56,6 +57,7 @@ class Model:
     mesh: Mesh
     space: Space
     problem: Problem
+    materials: ElementMaterials
 
 
 def build_model(case: Case, case_dir: Path, timer: StageTimer, log: Log = quiet) -> Model:
@@ -66,12 +68,13 @@ def build_model(case: Case, case_dir: Path, timer: StageTimer, log: Log = quiet)
     with timer("space"):
         space = build_space(mesh, case.mesh.order)
     with timer("loads"):
+        materials = element_materials(case.material, case.regions, mesh)
         problem = build_problem(
-            space, case.boundary_conditions, case.body_force, case.material.density,
+            space, case.boundary_conditions, case.body_force, materials.density,
             case.analysis, case.load_curves,
         )
     log(f"space      P{space.order}, {space.n_dofs:,} dofs")
-    return Model(mesh, space, problem)
+    return Model(mesh, space, problem, materials)
 
 
 def output_location(case: Case, case_path: Path, directory: str | None) -> tuple[Path, str]:
@@ -88,16 +91,20 @@ def build_operators(model: Model, case: Case, law: MaterialLaw, timer: StageTime
     space, analysis = model.space, case.analysis
     with timer("assemble"):
         op = strain_operator(space, case.mesh.formulation)
-        k = op.stiffness(law.elastic_tangent)
+        d = law.elastic_tangent
+        if d.ndim == 4:  # per element: one value for every quadrature point
+            d = np.ascontiguousarray(np.broadcast_to(d, (6, 6) + op.weights.shape))
+        k = op.stiffness(d)
     mass = damping = None
     if isinstance(analysis, DynamicAnalysis):
         from .fem.mass import consistent_mass, lumped_mass
 
         with timer("mass"):
+            density = model.materials.density
             if _mass_kind(analysis) == "lumped":
-                mass = sp.diags(lumped_mass(space, case.material.density)).tocsr()
+                mass = sp.diags(lumped_mass(space, density)).tocsr()
             else:
-                mass = consistent_mass(space, case.material.density)
+                mass = consistent_mass(space, density)
             if analysis.rayleigh is not None:
                 r = analysis.rayleigh
                 damping = (r.mass * mass + r.stiffness * k).tocsr()
@@ -169,8 +176,9 @@ def prepare(case: Case, case_dir: Path, timer: StageTimer, log: Log = quiet) -> 
     space, problem = model.space, model.problem
     dynamic = isinstance(analysis, DynamicAnalysis)
     explicit = dynamic and analysis.integrator == "central_difference"
-    if dynamic and case.material.density is None:
-        raise CaseError(("material", "density"), "a dynamic analysis needs material.density")
+    if dynamic and not model.materials.has_density():
+        raise CaseError(("material", "density"), "a dynamic analysis needs material.density "
+                        "(for every element)")
     if not dynamic:
         free = free_rigid_modes(space, problem.constraints.dofs)
         if free:
@@ -179,7 +187,7 @@ def prepare(case: Case, case_dir: Path, timer: StageTimer, log: Log = quiet) -> 
                 "the supports leave rigid-body motions free (" + ", ".join(free) + "): "
                 "a static solve is singular; add supports (fixed, displacement, symmetry)",
             )
-    law = material_law(case.material, case.plasticity)
+    law = material_law(model.materials, case.plasticity)
     grid = time_grid(analysis)
     ops = build_operators(model, case, law, timer)
     constrained = Constrained(problem, analysis.linear_solver)
@@ -187,10 +195,11 @@ def prepare(case: Case, case_dir: Path, timer: StageTimer, log: Log = quiet) -> 
     if explicit:
         with timer("time step"):
             r = analysis.rayleigh
+            m = model.materials
             limit = explicit_limit(
                 space, ops.stiffness, ops.mass.diagonal(), constrained.free,
-                case.material.youngs_modulus, case.material.poissons_ratio,
-                case.material.density, r.mass if r else 0.0, r.stiffness if r else 0.0,
+                m.youngs_modulus, m.poissons_ratio, m.density,
+                r.mass if r else 0.0, r.stiffness if r else 0.0,
             )
         substeps = explicit_substeps(limit, grid.dt, analysis.substeps)
         log(f"time step  dt {grid.dt:.4g}, stable limit {limit.dt:.4g} ({limit.method})"

@@ -30,9 +30,18 @@ class MaterialLaw:
         return self.yield_stress is not None
 
     @property
+    def uniform(self) -> bool:
+        return np.ndim(self.youngs_modulus) == 0 and np.ndim(self.poissons_ratio) == 0
+
+    @property
     def elastic_tangent(self) -> np.ndarray:
-        """Mandel ``(6, 6)``."""
-        return isotropic_tangent(self.youngs_modulus, self.poissons_ratio)
+        """Mandel ``(6, 6)``, or ``(6, 6, n_tets, 1)`` with properties per element."""
+        if self.uniform:
+            return isotropic_tangent(self.youngs_modulus, self.poissons_ratio)
+        lam, mu = lame_parameters(self.youngs_modulus, self.poissons_ratio)
+        eye, vol = np.eye(6)[:, :, None, None], np.zeros((6, 6, 1, 1))
+        vol[:3, :3] = 1.0
+        return 2.0 * mu * eye + lam * vol
 
     def initial_state(self, shape: tuple) -> PlasticState | None:
         if not self.plastic:
@@ -45,7 +54,10 @@ class MaterialLaw:
         when not asked for."""
         if not self.plastic:
             d = self.elastic_tangent
-            return np.einsum("ab,beq->aeq", d, strain), None, (d if tangent else None)
+            if d.ndim == 2:
+                return np.einsum("ab,beq->aeq", d, strain), None, (d if tangent else None)
+            d = np.broadcast_to(d, (6, 6) + strain.shape[1:])
+            return np.einsum("abeq,beq->aeq", d, strain), None, (d if tangent else None)
         return radial_return(
             strain,
             state,
@@ -78,12 +90,17 @@ class MaterialLaw:
         return float(energy)
 
 
-def material_law(material: schema.Material, plasticity: schema.Plasticity | None) -> MaterialLaw:
+def material_law(materials, plasticity: schema.Plasticity | None) -> MaterialLaw:
+    """The law of a case: ``materials`` is a ``schema.Material`` or the per-element
+    :class:`~fem_frac.regions.ElementMaterials` (arrays become ``(n_tets, 1)``)."""
+    e, nu = materials.youngs_modulus, materials.poissons_ratio
+    if np.ndim(e):
+        e, nu = np.asarray(e)[:, None], np.asarray(nu)[:, None]
     if plasticity is None:
-        return MaterialLaw(material.youngs_modulus, material.poissons_ratio)
+        return MaterialLaw(e, nu)
     return MaterialLaw(
-        material.youngs_modulus,
-        material.poissons_ratio,
+        e,
+        nu,
         plasticity.yield_stress,
         plasticity.hardening,
         plasticity.kinematic_hardening,

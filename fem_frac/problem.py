@@ -84,7 +84,7 @@ def build_problem(
     space: Space,
     conditions: list,
     body_force: schema.BodyForce | None,
-    density: float | None,
+    density,
     analysis=None,
     load_curves: dict | None = None,
 ) -> Problem:
@@ -150,9 +150,12 @@ def build_problem(
         dofs, values = np.zeros(0, dtype=np.int64), np.zeros(0)
         curve = np.zeros(0, dtype=np.int64)
     if body_force is not None:
-        if density is None:
-            raise CaseError(("body_force", "gravity"), "gravity needs material.density")
-        forces[curve_of[-1]] += loads.body_load(space, density * np.asarray(body_force.gravity))
+        if density is None or not np.all(np.isfinite(density)):
+            raise CaseError(("body_force", "gravity"),
+                            "gravity needs material.density (for every element)")
+        g = np.asarray(body_force.gravity)
+        rho = np.asarray(density, dtype=float)
+        forces[curve_of[-1]] += loads.body_load(space, rho[:, None] * g if rho.ndim else rho * g)
         described.append(f"gravity {tuple(body_force.gravity)}, curve {names[curve_of[-1]]}")
     return Problem(space, Constraints(dofs, values, curve), forces, curves, names, groups,
                    described)

@@ -51,6 +51,7 @@ def check_reference(case: schema.Case) -> None:
     if case.reference is None:
         return
     name, geometry = case.reference.solution, case.mesh.geometry
+    _need(not case.regions, name, "one material (no regions)")
     if name == "cantilever":
         _need(isinstance(geometry, schema.BoxGeometry), name, "a box geometry")
         _need(_by_type(case, schema.Fixed, "xmin") is not None, name, "fixed on 'xmin'")

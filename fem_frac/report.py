@@ -53,6 +53,16 @@ def check_report(case: Case, source: Source) -> str:
         triples = named_facets(mesh, name)
         area = _area(space, triples)
         lines.append(f"  {name:<18} {len(triples):>8,} faces   area {area:.6g}")
+    if case.regions:
+        lines.append("regions")
+        for i, (region, count) in enumerate(zip(case.regions, model.materials.counts,
+                                                strict=True)):
+            where = (f"subdomain {region.subdomain}" if region.subdomain is not None
+                     else f"box {list(region.box.min)} to {list(region.box.max)}")
+            values = ", ".join(f"{k} {v:g}" for k, v in region.model_dump(
+                include={"youngs_modulus", "poissons_ratio", "density"}).items()
+                if v is not None)
+            lines.append(f"  [{i}] {where}: {count:,} tets; {values}")
     lines.append("supports and loads")
     lines += [f"  {d}" for d in model.problem.descriptions] or ["  (none)"]
     if isinstance(case.analysis, DynamicAnalysis):
@@ -70,16 +80,17 @@ def _time_step_lines(case: Case, model) -> list[str]:
     from .material import material_law
     from .timestep import explicit_limit
 
-    if case.material.density is None:
-        raise CaseError(("material", "density"), "a dynamic analysis needs material.density")
+    m = model.materials
+    if not m.has_density():
+        raise CaseError(("material", "density"), "a dynamic analysis needs material.density "
+                        "(for every element)")
     analysis = case.analysis
-    ops = build_operators(model, case, material_law(case.material, None), StageTimer())
+    ops = build_operators(model, case, material_law(m, None), StageTimer())
     r = analysis.rayleigh
     limit = explicit_limit(
-        model.space, ops.stiffness, lumped_mass(model.space, case.material.density),
-        Constrained(model.problem, "auto").free, case.material.youngs_modulus,
-        case.material.poissons_ratio, case.material.density,
-        r.mass if r else 0.0, r.stiffness if r else 0.0,
+        model.space, ops.stiffness, lumped_mass(model.space, m.density),
+        Constrained(model.problem, "auto").free, m.youngs_modulus, m.poissons_ratio,
+        m.density, r.mass if r else 0.0, r.stiffness if r else 0.0,
     )
     dt = time_grid(analysis).dt
     verdict = ""

@@ -348,8 +348,9 @@ class ImplicitStepper:
                     raise NotConverged(
                         f"step {step} (t = {t:.6g}): equilibrium not reached in {iterations} "
                         f"iterations of {method} (relative residual {relative:.2e} > "
-                        f"tolerance {self.equilibrium.tolerance:g}); take smaller steps, "
-                        "or use analysis.equilibrium.method: newton"
+                        f"tolerance {self.equilibrium.tolerance:g}); take smaller steps"
+                        + (", or use analysis.equilibrium.method: newton"
+                           if method != "newton" else "")
                     )
                 if method == "newton" and law.plastic:
                     # refactorize only when the iterate is not yet converged
@@ -363,8 +364,7 @@ class ImplicitStepper:
                         raise NotConverged(
                             f"step {step} (t = {t:.6g}): the consistent tangent became "
                             f"singular after {iterations} iterations of newton (relative "
-                            f"residual {relative:.2e}): the plastic zone forms a mechanism, "
-                            "the load is at or beyond what the structure carries"
+                            f"residual {relative:.2e}): the plastic zone forms a mechanism"
                         ) from None
                     factorizations += 1
             correction = factor.solve(residual[free])

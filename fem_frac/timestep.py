@@ -49,7 +49,16 @@ def explicit_limit(space, stiffness, lumped, free, youngs_modulus, poissons_rati
                    mass_damping=0.0, stiffness_damping=0.0) -> ExplicitLimit:
     from .fem.mass import element_frequencies
 
-    bound = float(element_frequencies(space, youngs_modulus, poissons_ratio, density).max())
+    if np.ndim(youngs_modulus) == 0 and np.ndim(density) == 0:
+        bound = float(element_frequencies(space, youngs_modulus, poissons_ratio,
+                                          density).max())
+    else:
+        # per-element properties: omega_e scales as sqrt(E_e / rho_e) at a given nu; with
+        # the largest unit-property frequency over the body's distinct nu values the bound
+        # stays rigorous
+        nus = np.unique(np.broadcast_to(poissons_ratio, np.shape(space.mesh.tets)[:1]))
+        unit = np.max([element_frequencies(space, 1.0, float(nu), 1.0) for nu in nus], axis=0)
+        bound = float(np.max(unit * np.sqrt(np.asarray(youngs_modulus) / np.asarray(density))))
     bound_dt = central_difference_limit(bound, mass_damping, stiffness_damping)
     omega = highest_frequency(stiffness, lumped, free)
     if not np.isfinite(omega) or omega <= 0.0 or omega > bound * (1 + 1e-9):

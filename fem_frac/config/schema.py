@@ -120,6 +120,26 @@ class Material(Section):
     density: PositiveFloat | None = None
 
 
+class Region(Section):
+    """Elements whose centroid lies in ``box`` (or that belong to the mesh file's volume
+    group ``subdomain``) take these values in place of ``material``'s; later regions win."""
+
+    subdomain: str | None = None
+    box: BoxSelection | None = None
+    youngs_modulus: PositiveFloat | None = None
+    poissons_ratio: Annotated[float, Field(gt=-1.0, lt=0.5)] | None = None
+    density: PositiveFloat | None = None
+
+    @model_validator(mode="after")
+    def _where_and_what(self):
+        if (self.subdomain is None) == (self.box is None):
+            raise ValueError("give exactly one of 'subdomain' or 'box'")
+        if self.youngs_modulus is None and self.poissons_ratio is None and self.density is None:
+            raise ValueError("give at least one of 'youngs_modulus', 'poissons_ratio', "
+                             "'density'")
+        return self
+
+
 class Plasticity(Section):
     """Von Mises plasticity, associative, with linear isotropic hardening (``hardening`` H)
     and linear kinematic (Prager) hardening (``kinematic_hardening`` K); both 0: perfectly
@@ -407,6 +427,7 @@ class Case(Section):
     material: Material
     boundary_conditions: list[BoundaryCondition] = []
     body_force: BodyForce | None = None
+    regions: list[Region] = []
     plasticity: Plasticity | None = None
     load_curves: dict[str, LoadCurve] = {}
     analysis: Analysis = StaticAnalysis()

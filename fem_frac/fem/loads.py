@@ -37,10 +37,12 @@ def surface_load(space: Space, facet_ids: np.ndarray, traction=None, pressure=No
 
 
 def body_load(space: Space, force_density) -> np.ndarray:
-    """Consistent nodal forces of a constant body force (force/volume, ``(3,)``)."""
+    """Consistent nodal forces of a body force (force/volume): ``(3,)`` constant, or
+    ``(n_tets, 3)`` constant per element."""
     phi = np.stack([np.asarray(b[0]) for b in space.basis.basis])  # (n_local, n_tets, n_qp)
     w = np.einsum("aeq,eq->ea", phi, space.basis.dx)
-    nodal = w[:, :, None] * np.asarray(force_density, dtype=float)
+    f = np.asarray(force_density, dtype=float)
+    nodal = w[:, :, None] * (f[:, None, :] if f.ndim == 2 else f)
     return np.bincount(
         space.element_dofs.ravel(), weights=nodal.ravel(), minlength=space.n_dofs
     )

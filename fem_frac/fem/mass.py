@@ -32,12 +32,15 @@ def _mass_basis(space: Space):
     return CellBasis(space.skmesh, element, intorder=MASS_INTORDER[space.order])
 
 
-def element_scalar_mass(space: Space, density: float) -> np.ndarray:
-    """Scalar consistent element masses ``(n_tets, n_local, n_local)``: ``rho int N_a N_b``."""
+def element_scalar_mass(space: Space, density) -> np.ndarray:
+    """Scalar consistent element masses ``(n_tets, n_local, n_local)``: ``rho int N_a N_b``;
+    ``density`` one value or ``(n_tets,)``."""
     basis = _mass_basis(space)
     phi = np.stack([np.asarray(b[0]) for b in basis.basis])  # (n_local, n_tets, n_qp)
     phi = np.broadcast_to(phi, (phi.shape[0],) + basis.dx.shape)
-    return density * np.einsum("aeq,beq,eq->eab", phi, phi, basis.dx)
+    rho = np.asarray(density, dtype=float)
+    rho = rho.reshape(-1, 1, 1) if rho.ndim else rho  # per element, or one value
+    return rho * np.einsum("aeq,beq,eq->eab", phi, phi, basis.dx)
 
 
 def _scalar_element_dofs(space: Space) -> np.ndarray:

@@ -92,8 +92,11 @@ def radial_return(
     )
     if not tangent:
         return stress, new_state, None
-    elastic_tangent = 2.0 * mu * np.eye(6) + lam * np.outer(_VOL, _VOL)
-    d = np.array(_batch(elastic_tangent, shape))
+    if np.ndim(mu) == 0:
+        d = np.array(_batch(2.0 * mu * np.eye(6) + lam * np.outer(_VOL, _VOL), shape))
+    else:  # moduli per point (arrays broadcasting against the batch shape)
+        d = (2.0 * mu * _batch(np.eye(6), shape)
+             + lam * _batch(np.outer(_VOL, _VOL), shape))
     if np.any(plastic):
         # C_ep = C - 2mu [3mu/(3mu+H+K) N(x)N + (3mu dgamma/q)(I_dev - N(x)N)]
         nn = np.einsum("a...,b...->ab...", direction, direction)
