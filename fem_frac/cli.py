@@ -27,9 +27,10 @@ EXAMPLES = """examples:
 def _parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(
         prog="fem-frac",
-        description="Finite-element solver for elastic solids on tetrahedra (plasticity and\n"
-        "fracture to come). A YAML case file describes the scene; the output is a VTK\n"
-        "time series (.pvd + .vtu) that ParaView opens.",
+        description="Finite-element solver for elastic and elastoplastic solids on tetrahedra:\n"
+        "static, quasi-static and dynamic analyses (fracture to come). A YAML case file\n"
+        "describes the scene; the output is a VTK time series (.pvd + .vtu) that ParaView\n"
+        "opens, with a history.csv of energies, reactions and iterations.",
         epilog=EXAMPLES,
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
@@ -159,8 +160,15 @@ def _run(case, source, args) -> None:
         resolved_yaml=resolved_yaml(resolved_case(case, source, out_dir, name), source),
     )
     t = summary["wall_time_s"]
+    a = summary["analysis"]
+    extra = ""
+    if a["steps"] > 1 or case.plasticity is not None:
+        extra = (f", {a['steps']} steps, {a['iterations']} iterations, energy balance "
+                 f"{a['energy_error_relative']:.1e}")
+    if case.plasticity is not None:
+        extra += f", plastic dissipation = {summary['plastic_dissipation']:.6g}"
     log(f"done       max |u| = {summary['max_displacement']:.6g}, "
-        f"strain energy = {summary['strain_energy']:.6g}, {t['total']:.2f} s")
+        f"strain energy = {summary['strain_energy']:.6g}{extra}, {t['total']:.2f} s")
 
 
 def _study(args) -> int:
