@@ -1,0 +1,271 @@
+"""Topology core of crack insertion by face separation (DESIGN.md §2 "Fracture", §3).
+
+Elements are never cut: a crack opens along existing faces by giving tets their own copies
+of shared vertices. A mesh is never edited in place; every operation returns a new
+:class:`~fem_frac.mesh.Mesh` and a :class:`Transfer` that maps the old state onto it.
+
+- :func:`face_adjacency`, :func:`fragments`: tets sharing a face, connected components over
+  face adjacency (never over shared nodes).
+- :func:`split_vertex`: separate the tets around one vertex along a plane through it.
+- :func:`separate_nonmanifold`: give every face-connected fan of tets around a vertex its
+  own copy of the vertex (pieces joined only at a vertex or along an edge come apart).
+- :func:`open_crack`: a batch of plane splits followed by one non-manifold separation.
+
+New vertices are appended after the old ones (old ids keep their meaning), each a copy of
+an old vertex at the same reference position. Faces that were interior and became exterior
+are collected in the boundary group ``crack`` (appended to an existing ``crack`` group).
+
+Vectorized over tets and faces; only :func:`open_crack` loops, over the few split vertices.
+Deterministic: the same input gives identical arrays (stable sorts, no hash ordering).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.sparse as sp
+from scipy.sparse.csgraph import connected_components
+
+from ..mesh.mesh import TET_EDGES, TET_FACES, Mesh, exterior_facets, facet_keys
+
+CRACK = "crack"
+
+
+@dataclass(frozen=True)
+class Transfer:
+    """How the state of an old mesh maps onto a new one after a topology change.
+
+    Attributes
+    ----------
+    node_map: ``(n_new,)`` int64, for each new vertex the old vertex it copies (the identity
+        on the first ``n_old`` entries: old vertices keep their ids).
+    element_map: ``(n_tets,)`` int64, for each new tet the old tet it is (the identity here:
+        elements are never cut, so element state such as plastic strain stays put).
+    """
+
+    node_map: np.ndarray
+    element_map: np.ndarray
+
+    @property
+    def n_new_points(self) -> int:
+        return self.node_map.shape[0]
+
+    def transfer_nodal(self, values: np.ndarray) -> np.ndarray:
+        """Nodal values ``(n_old, ...)`` -> ``(n_new, ...)``: a copy takes its original's value."""
+        return np.asarray(values)[self.node_map]
+
+    def transfer_dofs(self, vector: np.ndarray) -> np.ndarray:
+        """P1 vector dofs ``(3 n_old, ...)`` (``3 node + component``) -> ``(3 n_new, ...)``."""
+        v = np.asarray(vector)
+        v = v.reshape((-1, 3) + v.shape[1:])
+        return self.transfer_nodal(v).reshape((-1,) + v.shape[2:])
+
+    def transfer_elemental(self, values: np.ndarray, axis: int = 0) -> np.ndarray:
+        """Element values with tets along ``axis`` (e.g. ``-2`` for ``(3, 3, nel, nqp)``)."""
+        return np.take(np.asarray(values), self.element_map, axis=axis)
+
+    def then(self, later: Transfer) -> Transfer:
+        """The composition: first ``self``, then ``later`` (old -> intermediate -> new)."""
+        return Transfer(self.node_map[later.node_map], self.element_map[later.element_map])
+
+
+def identity_transfer(n_points: int, n_tets: int) -> Transfer:
+    return Transfer(np.arange(n_points, dtype=np.int64), np.arange(n_tets, dtype=np.int64))
+
+
+# --------------------------------------------------------------------------- faces
+
+
+def _face_pairs(tets: np.ndarray):
+    """Matched faces of ``tets``: rows ``r1, r2`` (face row ``r`` is face ``r % 4`` of tet
+    ``r // 4``) that hold the same vertex set, and the local corners ``(k, 3)`` of each,
+    listed in increasing global vertex id so that column ``j`` is the same vertex in both.
+
+    A face held by more than two tets (non-manifold input) yields a chain of pairs, which
+    is enough for connectivity.
+    """
+    tets = np.asarray(tets, dtype=np.int64)
+    m = tets.shape[0]
+    glob = tets[:, TET_FACES].reshape(-1, 3)
+    local = np.broadcast_to(TET_FACES, (m, 4, 3)).reshape(-1, 3)
+    order = np.argsort(glob, axis=1, kind="stable")
+    glob = np.take_along_axis(glob, order, axis=1)
+    local = np.take_along_axis(local, order, axis=1)
+    rows = np.lexsort((glob[:, 2], glob[:, 1], glob[:, 0]))
+    s = glob[rows]
+    same = np.all(s[1:] == s[:-1], axis=1)
+    r1, r2 = rows[:-1][same], rows[1:][same]
+    return r1, r2, local[r1], local[r2]
+
+
+def face_adjacency(tets: np.ndarray) -> sp.csr_matrix:
+    """Symmetric ``(m, m)`` 0/1 CSR matrix: entry ``(a, b)`` is 1 when tets a and b share a face."""
+    m = np.asarray(tets).shape[0]
+    r1, r2, _, _ = _face_pairs(tets)
+    a, b = r1 // 4, r2 // 4
+    rows = np.concatenate([a, b])
+    cols = np.concatenate([b, a])
+    adj = sp.coo_matrix((np.ones(rows.size, dtype=np.int8), (rows, cols)), shape=(m, m)).tocsr()
+    adj.data[:] = 1  # a (degenerate) double sharing counts once
+    return adj
+
+
+def fragments(tets: np.ndarray) -> tuple[int, np.ndarray]:
+    """Connected components over face adjacency: ``(n_fragments, labels (m,))``.
+
+    Two tets touching only at a vertex or along an edge are in different fragments.
+    """
+    n, labels = connected_components(face_adjacency(tets), directed=False)
+    return int(n), labels.astype(np.int64)
+
+
+# --------------------------------------------------------------------------- splitting
+
+
+def _separate_tets(tets: np.ndarray, n_points: int) -> tuple[np.ndarray, np.ndarray]:
+    """Core of :func:`separate_nonmanifold` on the tet table: ``(new_tets, node_map)``.
+
+    Graph over the ``4 m`` corner incidences (tet, local corner): two incidences of the same
+    vertex are joined when their tets share a face containing it. Each component is one
+    face-connected fan of tets around a vertex. The fan holding the lowest incidence keeps
+    the vertex id; the others get copies appended in order of (vertex, lowest incidence).
+    """
+    tets = np.asarray(tets, dtype=np.int64)
+    m = tets.shape[0]
+    r1, r2, l1, l2 = _face_pairs(tets)
+    i1 = ((r1 // 4)[:, None] * 4 + l1).ravel()
+    i2 = ((r2 // 4)[:, None] * 4 + l2).ravel()
+    graph = sp.coo_matrix((np.ones(i1.size, dtype=np.int8), (i1, i2)), shape=(4 * m, 4 * m))
+    n_comp, comp = connected_components(graph, directed=False)
+    first = np.full(n_comp, 4 * m, dtype=np.int64)
+    np.minimum.at(first, comp, np.arange(4 * m, dtype=np.int64))
+    vert = tets.ravel()[first]  # the vertex of each fan
+    order = np.lexsort((first, vert))
+    primary = np.ones(n_comp, dtype=bool)
+    primary[order[1:]] = vert[order[1:]] != vert[order[:-1]]
+    new_id = vert.copy()
+    extra = order[~primary[order]]
+    new_id[extra] = n_points + np.arange(extra.size, dtype=np.int64)
+    node_map = np.concatenate([np.arange(n_points, dtype=np.int64), vert[extra]])
+    return new_id[comp].reshape(m, 4), node_map
+
+
+def _split_plane(tets, points, vertex, normal) -> tuple[np.ndarray, bool]:
+    """Give the tets around ``vertex`` whose centroid lies on the negative side of the plane
+    through it (normal ``normal``) the id ``len(points)``; ``(tets, split happened)``."""
+    rows, cols = np.nonzero(tets == vertex)
+    if rows.size == 0:
+        return tets, False
+    centroids = points[tets[rows]].mean(axis=1)
+    minus = (centroids - points[vertex]) @ normal < 0.0
+    if not minus.any() or minus.all():
+        return tets, False
+    tets = tets.copy()
+    tets[rows[minus], cols[minus]] = len(points)
+    return tets, True
+
+
+def _rebuild(old: Mesh, tets: np.ndarray, node_map: np.ndarray) -> tuple[Mesh, Transfer]:
+    """The new mesh on ``tets`` (ids into ``old.points[node_map]``): boundaries re-expressed,
+    the ``crack`` group extended by the newly exposed faces, curved edges remapped."""
+    n_old = old.n_points
+    points = old.points[node_map]
+
+    # every face of the new mesh, and its image in old ids
+    faces = tets[:, TET_FACES].reshape(-1, 3)
+    image = facet_keys(node_map[faces], n_old)
+    sorter = np.argsort(image, kind="stable")  # ties: lowest tet first
+
+    boundaries = {}
+    for name, tri in old.boundaries.items():
+        tri = np.asarray(tri, dtype=np.int64).reshape(-1, 3)
+        want = facet_keys(tri, n_old)
+        pos = np.minimum(np.searchsorted(image, want, sorter=sorter), len(image) - 1)
+        row = sorter[pos]
+        if tri.size and not np.all(image[row] == want):
+            raise ValueError(f"boundary {name!r}: facets that are not faces of the mesh")
+        f = faces[row]  # (k, 3) new ids, any order
+        # keep the caller's vertex order (and so the orientation) of every triangle
+        match = node_map[f][:, None, :] == tri[:, :, None]  # (k, 3 caller, 3 face)
+        boundaries[name] = np.take_along_axis(f, np.argmax(match, axis=2), axis=1)
+
+    outer_new = exterior_facets(tets)
+    outer_old = facet_keys(exterior_facets(old.tets), n_old)
+    exposed = outer_new[~np.isin(facet_keys(node_map[outer_new], n_old), outer_old)]
+    boundaries[CRACK] = np.concatenate(
+        [boundaries.get(CRACK, np.empty((0, 3), dtype=np.int64)), exposed]
+    ).astype(np.int64)
+
+    edges, edge_points = old.edges, old.edge_points
+    if old.curved:
+        pairs = np.unique(np.sort(tets[:, TET_EDGES].reshape(-1, 2), axis=1), axis=0)
+        key_old = old.edges[:, 0].astype(np.int64) * n_old + old.edges[:, 1]
+        o = np.argsort(key_old)
+        img = np.sort(node_map[pairs], axis=1)
+        want = img[:, 0] * np.int64(n_old) + img[:, 1]
+        pos = o[np.minimum(np.searchsorted(key_old, want, sorter=o), len(o) - 1)]
+        ok = key_old[pos] == want
+        edges, edge_points = pairs[ok], old.edge_points[pos[ok]]
+
+    mesh = Mesh(
+        points=points,
+        tets=tets,
+        boundaries=boundaries,
+        subdomains={k: np.asarray(v).copy() for k, v in old.subdomains.items()},
+        edges=edges,
+        edge_points=edge_points,
+    )
+    return mesh, Transfer(node_map, np.arange(old.n_tets, dtype=np.int64))
+
+
+def separate_nonmanifold(mesh: Mesh) -> tuple[Mesh, Transfer]:
+    """Split every vertex whose incident tets are not face-connected among themselves.
+
+    Each extra face-connected fan around a vertex gets its own copy of the vertex, so pieces
+    joined only at a vertex come apart, and pieces joined only along an edge come apart too
+    (both end vertices split). No face changes hands: a face shared by two tets keeps one
+    fan on both sides, so the exterior faces and the ``crack`` group stay as they are.
+    """
+    tets, node_map = _separate_tets(mesh.tets, mesh.n_points)
+    return _rebuild(mesh, tets, node_map)
+
+
+def split_vertex(mesh: Mesh, vertex: int, normal, separate: bool = True) -> tuple[Mesh, Transfer]:
+    """Open the mesh at ``vertex`` along the plane through it with normal ``normal``.
+
+    The tets around the vertex go to the + or − side by the sign of
+    ``(centroid − vertex) · normal`` in reference coordinates (zero counts as +). If both
+    sides are non-empty, the − side gets a new copy of the vertex (appended last); the faces
+    between the two sides become exterior and are added to the ``crack`` boundary. Then
+    (``separate``) :func:`separate_nonmanifold` splits whatever is left joined only at a
+    vertex or an edge. Returns the new mesh and the :class:`Transfer` from ``mesh``.
+    """
+    return open_crack(mesh, [vertex], np.reshape(normal, (1, 3)), separate=separate)
+
+
+def open_crack(mesh: Mesh, vertices, normals, separate: bool = True) -> tuple[Mesh, Transfer]:
+    """A batch of :func:`split_vertex`: plane splits in the given order, then one
+    :func:`separate_nonmanifold`. ``vertices (k,)`` are ids of ``mesh`` (old ids keep their
+    meaning through the batch: a later split of a vertex acts on the tets still holding the
+    original id, i.e. its + side). ``normals (k, 3)``; only their direction matters.
+    """
+    vertices = np.atleast_1d(np.asarray(vertices, dtype=np.int64))
+    normals = np.asarray(normals, dtype=float).reshape(-1, 3)
+    if vertices.shape[0] != normals.shape[0]:
+        raise ValueError(f"{vertices.shape[0]} vertices but {normals.shape[0]} normals")
+    if vertices.size and (vertices.min() < 0 or vertices.max() >= mesh.n_points):
+        raise ValueError("vertex id out of range")
+    tets = np.asarray(mesh.tets, dtype=np.int64)
+    node_map = list(range(mesh.n_points))
+    ref = np.asarray(mesh.points, dtype=float)
+    for v, n in zip(vertices, normals, strict=True):
+        tets, split = _split_plane(tets, ref, int(v), n)
+        if split:
+            node_map.append(node_map[int(v)])
+            ref = np.concatenate([ref, ref[int(v)][None]])
+    node_map = np.asarray(node_map, dtype=np.int64)
+    if separate:
+        tets, later = _separate_tets(tets, node_map.size)
+        node_map = node_map[later]
+    return _rebuild(mesh, tets, node_map)
