@@ -16,7 +16,7 @@ from fem_frac.fracture import (
     split_vertex,
 )
 from fem_frac.mesh import Mesh, exterior_facets, tet_volumes
-from fem_frac.mesh.mesh import TET_FACES, facet_keys
+from fem_frac.mesh.mesh import TET_EDGES, TET_FACES, facet_keys
 from meshes import structured_box
 
 
@@ -274,3 +274,46 @@ def test_transfer_linear_field():
     # element state stays with its element
     eps = rng.normal(size=(3, 3, old.n_tets, 1))
     np.testing.assert_array_equal(tr.transfer_elemental(eps, axis=-2), eps)
+
+
+def test_curved_edges_follow_their_tets():
+    """Mid-side nodes of a curved quadratic mesh are copied with the edges they sit on."""
+    box = structured_box((3, 2, 2), distortion=0.1)
+    edges = np.unique(np.sort(box.tets[:, TET_EDGES].reshape(-1, 2), axis=1), axis=0)
+    rng = np.random.default_rng(5)
+    mid = box.points[edges].mean(axis=1) + 0.01 * rng.uniform(-1, 1, (len(edges), 3))
+    old = Mesh(box.points, box.tets, edges=edges, edge_points=mid)
+    v = _nearest(old, [1 / 3, 0.5, 0.5])
+    new, tr = split_vertex(old, v, [1.0, 0.0, 0.0])
+    assert new.curved and len(new.edges) > len(edges)
+    np.testing.assert_array_equal(new.edges, np.sort(new.edges, axis=1))
+    img = np.sort(tr.node_map[new.edges], axis=1)
+    pos = np.searchsorted(
+        edges[:, 0] * old.n_points + edges[:, 1], img[:, 0] * old.n_points + img[:, 1]
+    )
+    np.testing.assert_array_equal(edges[pos], img)
+    np.testing.assert_array_equal(new.edge_points, mid[pos])
+    # every edge of the new tets is listed, and the P2 space builds with the same total mass
+    all_new = np.unique(np.sort(new.tets[:, TET_EDGES].reshape(-1, 2), axis=1), axis=0)
+    np.testing.assert_array_equal(all_new, new.edges)
+    m_old = lumped_mass(build_space(old, 2), 1.0).sum()
+    m_new = lumped_mass(build_space(new, 2), 1.0).sum()
+    assert abs(m_new - m_old) <= 1e-12 * m_old
+
+
+def test_second_crack_extends_crack_group():
+    old = _with_boundaries(structured_box((4, 3, 3)))
+    one, t1 = split_vertex(old, _nearest(old, [0.5, 1 / 3, 1 / 3]), [1.0, 0.0, 0.0])
+    two, t2 = split_vertex(one, _nearest(one, [0.5, 2 / 3, 2 / 3]), [1.0, 0.0, 0.0])
+    c1, c2 = one.boundaries[CRACK], two.boundaries[CRACK]
+    assert len(c2) > len(c1)
+    # the old crack faces are re-expressed first, then the new ones follow
+    np.testing.assert_array_equal(t2.node_map[c2[: len(c1)]], c1)
+    both = t1.then(t2)
+    np.testing.assert_array_equal(both.node_map[two.tets], old.tets)
+    _check_split(old, two, both)
+    # without non-manifold separation only the plane copy is made
+    bare, tb = split_vertex(
+        old, _nearest(old, [0.5, 1 / 3, 1 / 3]), [1.0, 0.0, 0.0], separate=False
+    )
+    assert bare.n_points == old.n_points + 1

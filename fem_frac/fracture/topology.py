@@ -27,7 +27,7 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.csgraph import connected_components
 
-from ..mesh.mesh import TET_EDGES, TET_FACES, Mesh, exterior_facets, facet_keys
+from ..mesh.mesh import TET_EDGES, TET_FACES, Mesh, facet_keys
 
 CRACK = "crack"
 
@@ -151,19 +151,33 @@ def _separate_tets(tets: np.ndarray, n_points: int) -> tuple[np.ndarray, np.ndar
     return new_id[comp].reshape(m, 4), node_map
 
 
-def _split_plane(tets, points, vertex, normal) -> tuple[np.ndarray, bool]:
+def _split_plane(tets, points, vertex, normal, incidences) -> bool:
     """Give the tets around ``vertex`` whose centroid lies on the negative side of the plane
-    through it (normal ``normal``) the id ``len(points)``; ``(tets, split happened)``."""
-    rows, cols = np.nonzero(tets == vertex)
-    if rows.size == 0:
-        return tets, False
+    through it (normal ``normal``) the id ``len(points)``, in place; True if it split.
+
+    ``incidences``: flat indices into ``tets`` that held ``vertex`` originally (a split only
+    ever replaces ids, so the current holders are among them).
+    """
+    flat = tets.reshape(-1)
+    inc = incidences[flat[incidences] == vertex]
+    if inc.size == 0:
+        return False
+    rows = inc // 4
     centroids = points[tets[rows]].mean(axis=1)
     minus = (centroids - points[vertex]) @ normal < 0.0
     if not minus.any() or minus.all():
-        return tets, False
-    tets = tets.copy()
-    tets[rows[minus], cols[minus]] = len(points)
-    return tets, True
+        return False
+    flat[inc[minus]] = len(points)
+    return True
+
+
+def _exterior_rows(tets: np.ndarray, n_points: int) -> np.ndarray:
+    """Mask over the ``4 m`` face rows ``tets[:, TET_FACES]`` of faces held by one tet only:
+    the rows of :func:`~fem_frac.mesh.exterior_facets`, outward oriented, same order (by
+    integer keys, which sort far faster than ``np.unique(axis=0)`` on large meshes)."""
+    keys = facet_keys(np.asarray(tets)[:, TET_FACES].reshape(-1, 3), n_points)
+    _, inverse, counts = np.unique(keys, return_inverse=True, return_counts=True)
+    return counts[inverse.ravel()] == 1
 
 
 def _rebuild(old: Mesh, tets: np.ndarray, node_map: np.ndarray) -> tuple[Mesh, Transfer]:
@@ -190,8 +204,9 @@ def _rebuild(old: Mesh, tets: np.ndarray, node_map: np.ndarray) -> tuple[Mesh, T
         match = node_map[f][:, None, :] == tri[:, :, None]  # (k, 3 caller, 3 face)
         boundaries[name] = np.take_along_axis(f, np.argmax(match, axis=2), axis=1)
 
-    outer_new = exterior_facets(tets)
-    outer_old = facet_keys(exterior_facets(old.tets), n_old)
+    outer_new = faces[_exterior_rows(tets, len(node_map))]
+    old_faces = np.asarray(old.tets, dtype=np.int64)[:, TET_FACES].reshape(-1, 3)
+    outer_old = facet_keys(old_faces[_exterior_rows(old.tets, n_old)], n_old)
     exposed = outer_new[~np.isin(facet_keys(node_map[outer_new], n_old), outer_old)]
     boundaries[CRACK] = np.concatenate(
         [boundaries.get(CRACK, np.empty((0, 3), dtype=np.int64)), exposed]
@@ -256,15 +271,20 @@ def open_crack(mesh: Mesh, vertices, normals, separate: bool = True) -> tuple[Me
         raise ValueError(f"{vertices.shape[0]} vertices but {normals.shape[0]} normals")
     if vertices.size and (vertices.min() < 0 or vertices.max() >= mesh.n_points):
         raise ValueError("vertex id out of range")
-    tets = np.asarray(mesh.tets, dtype=np.int64)
-    node_map = list(range(mesh.n_points))
-    ref = np.asarray(mesh.points, dtype=float)
-    for v, n in zip(vertices, normals, strict=True):
-        tets, split = _split_plane(tets, ref, int(v), n)
-        if split:
-            node_map.append(node_map[int(v)])
-            ref = np.concatenate([ref, ref[int(v)][None]])
-    node_map = np.asarray(node_map, dtype=np.int64)
+    tets = np.array(mesh.tets, dtype=np.int64)  # a private copy, edited in place below
+    n = mesh.n_points
+    # flat positions in ``tets`` grouped by the vertex they hold (CSR-like)
+    by_vertex = np.argsort(tets.reshape(-1), kind="stable")
+    start = np.searchsorted(tets.reshape(-1), np.arange(n + 1), sorter=by_vertex)
+    # reference points of the originals and of the copies made so far
+    ref = np.concatenate([np.asarray(mesh.points, dtype=float), np.empty((len(vertices), 3))])
+    copied = []
+    for v, normal in zip(vertices.tolist(), normals, strict=True):
+        inc = by_vertex[start[v] : start[v + 1]]
+        if _split_plane(tets, ref[: n + len(copied)], v, normal, inc):
+            ref[n + len(copied)] = ref[v]
+            copied.append(v)
+    node_map = np.concatenate([np.arange(n, dtype=np.int64), np.asarray(copied, dtype=np.int64)])
     if separate:
         tets, later = _separate_tets(tets, node_map.size)
         node_map = node_map[later]
