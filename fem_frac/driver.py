@@ -14,7 +14,7 @@ import scipy.sparse as sp
 
 from . import __version__, integrators
 from .config.schema import Case, DynamicAnalysis, StaticAnalysis
-from .errors import CaseError
+from .errors import CaseError, SolverError
 from .fem.space import Space, build_space
 from .integrators import Implicit
 from .loading import TimeGrid, time_grid
@@ -65,6 +65,14 @@ def build_model(case: Case, case_dir: Path, timer: StageTimer, log: Log = quiet)
     with timer("mesh"):
         mesh = build_mesh(case.mesh, case_dir)
     log(f"mesh       {mesh.n_tets:,} tets, {mesh.n_points:,} vertices")
+    model = model_on(case, mesh, timer)
+    log(f"space      P{model.space.order}, {model.space.n_dofs:,} dofs")
+    return model
+
+
+def model_on(case: Case, mesh: Mesh, timer: StageTimer) -> Model:
+    """Function space, materials, supports and loads of ``case`` on ``mesh`` (also a mesh
+    that crack insertion made: named groups follow the faces they named)."""
     with timer("space"):
         space = build_space(mesh, case.mesh.order)
     with timer("loads"):
@@ -73,7 +81,6 @@ def build_model(case: Case, case_dir: Path, timer: StageTimer, log: Log = quiet)
             space, case.boundary_conditions, case.body_force, materials.density,
             case.analysis, case.load_curves,
         )
-    log(f"space      P{space.order}, {space.n_dofs:,} dofs")
     return Model(mesh, space, problem, materials)
 
 
@@ -151,6 +158,18 @@ def explicit_substeps(limit: ExplicitLimit, dt: float, allow: bool) -> int:
 
 
 @dataclass(frozen=True, eq=False)
+class Discretization:
+    """What one mesh provides: the model, operators, constrained split and stepper (and the
+    explicit stable step). Rebuilt after every topology change."""
+
+    model: Model
+    ops: Operators
+    constrained: Constrained
+    stepper: object
+    limit: ExplicitLimit | None
+
+
+@dataclass(frozen=True, eq=False)
 class Setup:
     """A validated case ready to step: model, law, time grid, operators and stepper."""
 
@@ -167,6 +186,10 @@ class Setup:
     def dynamic(self) -> bool:
         return isinstance(self.case.analysis, DynamicAnalysis)
 
+    @property
+    def discretization(self) -> Discretization:
+        return Discretization(self.model, self.ops, self.constrained, self.stepper, self.limit)
+
 
 def prepare(case: Case, case_dir: Path, timer: StageTimer, log: Log = quiet) -> Setup:
     """Everything before the first step; every input error is raised here."""
@@ -175,7 +198,6 @@ def prepare(case: Case, case_dir: Path, timer: StageTimer, log: Log = quiet) -> 
     model = build_model(case, case_dir, timer, log)
     space, problem = model.space, model.problem
     dynamic = isinstance(analysis, DynamicAnalysis)
-    explicit = dynamic and analysis.integrator == "central_difference"
     if dynamic and not model.materials.has_density():
         raise CaseError(("material", "density"), "a dynamic analysis needs material.density "
                         "(for every element)")
@@ -187,8 +209,23 @@ def prepare(case: Case, case_dir: Path, timer: StageTimer, log: Log = quiet) -> 
                 "the supports leave rigid-body motions free (" + ", ".join(free) + "): "
                 "a static solve is singular; add supports (fixed, displacement, symmetry)",
             )
+    if case.fracture is not None:
+        from .fracture.stage import protected_vertices
+
+        protected_vertices(case.fracture, model.mesh)  # names and boxes checked here
     law = material_law(model.materials, case.plasticity)
     grid = time_grid(analysis)
+    d = discretize(case, model, law, grid.dt, timer, log)
+    return Setup(case, d.model, law, grid, d.ops, d.constrained, d.stepper, d.limit)
+
+
+def discretize(case: Case, model: Model, law: MaterialLaw, dt: float, timer: StageTimer,
+               log: Log = quiet) -> Discretization:
+    """Operators and stepper of ``model`` (factorization deferred to the first step)."""
+    analysis = case.analysis
+    explicit = isinstance(analysis, DynamicAnalysis) and (
+        analysis.integrator == "central_difference")
+    problem = model.problem
     ops = build_operators(model, case, law, timer)
     constrained = Constrained(problem, analysis.linear_solver)
     limit = None
@@ -197,24 +234,45 @@ def prepare(case: Case, case_dir: Path, timer: StageTimer, log: Log = quiet) -> 
             r = analysis.rayleigh
             m = model.materials
             limit = explicit_limit(
-                space, ops.stiffness, ops.mass.diagonal(), constrained.free,
+                model.space, ops.stiffness, ops.mass.diagonal(), constrained.free,
                 m.youngs_modulus, m.poissons_ratio, m.density,
                 r.mass if r else 0.0, r.stiffness if r else 0.0,
             )
-        substeps = explicit_substeps(limit, grid.dt, analysis.substeps)
-        log(f"time step  dt {grid.dt:.4g}, stable limit {limit.dt:.4g} ({limit.method})"
+        substeps = explicit_substeps(limit, dt, analysis.substeps)
+        log(f"time step  dt {dt:.4g}, stable limit {limit.dt:.4g} ({limit.method})"
             + (f", {substeps} substeps per step" if substeps > 1 else ""))
-        stepper = ExplicitStepper(problem, law, ops, grid.dt, substeps, constrained)
+        stepper = ExplicitStepper(problem, law, ops, dt, substeps, constrained)
     else:
         equilibrium = Equilibrium(**analysis.equilibrium.model_dump())
-        stepper = ImplicitStepper(problem, law, ops, scheme(analysis, grid.dt), equilibrium,
+        stepper = ImplicitStepper(problem, law, ops, scheme(analysis, dt), equilibrium,
                                   constrained)
-    return Setup(case, model, law, grid, ops, constrained, stepper, limit)
+    return Discretization(model, ops, constrained, stepper, limit)
 
 
-def simulate(setup: Setup, timer: StageTimer, observe: Observer, log: Log = quiet):
+def fracture_stage(setup: Setup, timer: StageTimer, log: Log = quiet):
+    """The fracture stage of a case with a ``fracture:`` section (``None`` without)."""
+    case = setup.case
+    if case.fracture is None:
+        return None
+    from .fracture.stage import FractureStage
+
+    def build(mesh: Mesh) -> Discretization:
+        with timer("fracture rebuild"):
+            model = model_on(case, mesh, timer)
+            try:
+                return discretize(case, model, setup.law, setup.grid.dt, timer)
+            except CaseError as exc:
+                raise SolverError(f"after crack insertion: {exc.message}") from None
+
+    return FractureStage(case.fracture, setup.law, setup.discretization, build, setup.dynamic,
+                         log)
+
+
+def simulate(setup: Setup, timer: StageTimer, observe: Observer, log: Log = quiet,
+             fracture=None):
     """Factorize, take every step; ``observe(n, state, ledger, info)`` sees each committed
-    step, step 0 included. Returns ``(state, ledger, counters)``."""
+    step, step 0 included; ``fracture`` (a :class:`~fem_frac.fracture.stage.FractureStage`)
+    runs after each. Returns ``(state, ledger, counters)``."""
     model, analysis = setup.model, setup.case.analysis
     counters = Counters()
     if isinstance(setup.stepper, ImplicitStepper):
@@ -236,7 +294,7 @@ def simulate(setup: Setup, timer: StageTimer, observe: Observer, log: Log = quie
     times = np.array([setup.grid.time(n) for n in range(setup.grid.steps + 1)])
     with timer("steps"):
         state, ledger = march(setup.stepper, state, times, model.problem, setup.law,
-                              setup.ops, observe, counters)
+                              setup.ops, observe, counters, after_step=fracture)
     return state, ledger, counters
 
 
@@ -254,23 +312,32 @@ def run_case(
     setup = prepare(case, case_path.parent, timer, log)
     # after validation (a bad case never touches earlier results), before the long stages
     prepare_directory(out_dir, name, overwrite)
-    space, problem = setup.model.space, setup.model.problem
     writer = SeriesWriter(out_dir, name)
     output = OutputPlan(case.analysis, setup.grid.steps)
     progress = Progress(log, setup.grid.steps)
     recorder = Recorder(setup)
+    fracture = fracture_stage(setup, timer, log)
+    cracks = None
+    if fracture is not None and case.output.crack_surface:
+        cracks = SeriesWriter(out_dir, f"{name}_crack")
     with HistoryWriter(out_dir / "history.csv") as history:
 
         def observe(n: int, st: State, ledger: Ledger, info: StepInfo) -> None:
-            history.write(history_row(n, st, ledger, info, problem, timer.total()))
+            current = fracture.current.model if fracture is not None else setup.model
+            row = history_row(n, st, ledger, info, current.problem, timer.total())
+            if fracture is not None:
+                row.update(fracture_row(fracture, info))
+            history.write(row)
             recorder(n, st)
             if output.due(n):
                 with timer("output"):
-                    write_step(writer, space, st, setup.dynamic)
+                    write_step(writer, current.space, st, setup.dynamic, fracture)
+                    if cracks is not None:
+                        write_crack_surface(cracks, current.mesh, st)
             progress(n, st, info)
 
-        state, ledger, counters = simulate(setup, timer, observe, log)
-    summary = _summary(setup, case_path, state, ledger, counters, timer)
+        state, ledger, counters = simulate(setup, timer, observe, log, fracture)
+    summary = _summary(setup, case_path, state, ledger, counters, timer, fracture)
     if case.reference is not None:
         summary["reference"] = reference_error(setup, state, recorder)
         ref = summary["reference"]
@@ -325,14 +392,42 @@ class Progress:
                  f"iterations {info.iterations}  residual {info.residual:.1e}")
 
 
-def write_step(writer: SeriesWriter, space: Space, state: State, dynamic: bool) -> None:
+def write_step(writer: SeriesWriter, space: Space, state: State, dynamic: bool,
+               fracture=None) -> None:
     point_data = {"displacement": state.u.reshape(-1, 3)}
     if dynamic:
         point_data["velocity"] = state.v.reshape(-1, 3)
     cell_data = stress_fields(space, state.stress)
     if state.plastic is not None:
         cell_data.update(plastic_fields(space, state.plastic))
+    if fracture is not None:
+        cell_data["fragment_id"] = fracture.labels.astype(np.int32)
+        sigma1, _ = fracture.principal(state)
+        cell_data["smoothed_max_principal_stress"] = sigma1
     writer.write(state.t, space.node_points, vtk_cells(space), point_data, cell_data)
+
+
+def write_crack_surface(writer: SeriesWriter, mesh: Mesh, state: State) -> None:
+    """The crack faces (both sides) as triangles over the mesh's vertices, with their
+    displacement; written at every output step, empty before the first crack (ParaView
+    drops a series' part that first appears mid-way)."""
+    from .fracture import CRACK
+
+    tri = np.asarray(mesh.boundaries.get(CRACK, np.zeros((0, 3), dtype=np.int64)))
+    u = state.u.reshape(-1, 3)[: mesh.n_points]  # P2: vertices come first
+    writer.write(state.t, mesh.points, ("triangle", tri.astype(np.int64)),
+                 {"displacement": u}, {})
+
+
+def fracture_row(fracture, info: StepInfo) -> dict:
+    """History columns of the fracture stage."""
+    return {
+        "crack_faces": fracture.crack.faces,
+        "crack_area": fracture.crack.area,
+        "fragments": fracture.n_fragments,
+        "insertions": info.insertions,
+        "fracture_passes": info.passes,
+    }
 
 
 def history_row(n: int, state: State, ledger: Ledger, info: StepInfo, problem: Problem,
@@ -346,6 +441,7 @@ def history_row(n: int, state: State, ledger: Ledger, info: StepInfo, problem: P
         "plastic_work": ledger.plastic_work,
         "damping_work": ledger.damping_work,
         "external_work": ledger.external_work,
+        "fracture_energy": ledger.fracture,
         "energy_error": ledger.error,
         "energy_error_relative": ledger.relative_error,
     }
@@ -369,8 +465,10 @@ def history_row(n: int, state: State, ledger: Ledger, info: StepInfo, problem: P
     return row
 
 
-def _summary(setup: Setup, case_path, state, ledger, counters, timer) -> dict:
+def _summary(setup: Setup, case_path, state, ledger, counters, timer, fracture=None) -> dict:
     case, model, grid, limit = setup.case, setup.model, setup.grid, setup.limit
+    if fracture is not None:
+        model, limit = fracture.current.model, fracture.current.limit
     space, problem = model.space, model.problem
     reaction = np.zeros(space.n_dofs)
     reaction[problem.constraints.dofs] = state.reaction
@@ -420,4 +518,21 @@ def _summary(setup: Setup, case_path, state, ledger, counters, timer) -> dict:
         alpha = state.plastic.equivalent_plastic_strain
         out["max_equivalent_plastic_strain"] = float(alpha.max())
         out["yielded_points"] = int(np.count_nonzero(alpha > 0))
+    if fracture is not None:
+        batches = fracture.batches
+        out["fracture"] = {
+            "crack_faces": fracture.crack.faces,
+            "crack_area": fracture.crack.area,
+            "fragments": fracture.n_fragments,
+            "insertions": int(sum(b.sites for b in batches)),
+            "batches": len(batches),
+            "new_vertices": int(sum(b.new_vertices for b in batches)),
+            "first_crack_time": _first_crack_time(setup, batches),
+            "energy_released": ledger.fracture,
+            "insertion_seconds": round(fracture.rebuild_seconds, 6),
+        }
     return out
+
+
+def _first_crack_time(setup: Setup, batches) -> float | None:
+    return setup.grid.time(batches[0].step) if batches else None

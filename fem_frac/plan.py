@@ -32,8 +32,10 @@ def make_plan(case: Case) -> list[Stage]:
         case.mesh.formulation == "averaged") else ""
     fields = "displacement" + (", velocity" if dynamic else "") + "; stress, von_mises, " \
         "max_principal_stress" + (
-            ", plastic_strain, equivalent_plastic_strain" if case.plasticity else "") + \
-        "; history.csv, summary.json"
+            ", plastic_strain, equivalent_plastic_strain" if case.plasticity else "") + (
+            ", fragment_id, smoothed_max_principal_stress" if case.fracture else "") + (
+            "; crack surface series" if case.fracture and case.output.crack_surface else "") \
+        + "; history.csv, summary.json"
     return [
         Stage("mesh", True, describe_source(case.mesh)),
         Stage(
@@ -47,8 +49,8 @@ def make_plan(case: Case) -> list[Stage]:
         _mass(analysis),
         Stage("solve", True, _solve(analysis)),
         _plasticity(case),
-        Stage("fracture", False, "not requested"),
-        Stage("fragments", False, "not requested"),
+        _fracture(case),
+        _fragments(case),
         Stage("output", True, fields + _cadence(analysis)),
     ]
 
@@ -103,6 +105,29 @@ def _plasticity(case: Case) -> Stage:
         iteration += f", relative residual <= {eq.tolerance:g}"
     return Stage("plasticity", True,
                  f"von Mises radial return, yield stress {p.yield_stress:g}, {law}; {iteration}")
+
+
+def _fracture(case: Case) -> Stage:
+    f = case.fracture
+    if f is None:
+        return Stage("fracture", False, "not requested")
+    s = f.smoothing
+    size = f"length {s.length:g}" if s.length is not None else f"{s.rings} ring(s)"
+    text = (f"smoothed ({s.method}, {size}) max principal stress > {f.tensile_strength:g} opens "
+            f"cracks by face separation: up to {f.batch_size} site(s) a batch, "
+            f"{f.passes} re-solve(s) and {f.max_insertions_per_step} site(s) a step")
+    if f.perturbation is not None:
+        text += f"; normals tilted up to {f.perturbation.angle:g} deg (seed {f.perturbation.seed})"
+    if f.protect:
+        text += f"; {len(f.protect)} protected part(s)"
+    return Stage("fracture", True, text)
+
+
+def _fragments(case: Case) -> Stage:
+    if case.fracture is None:
+        return Stage("fragments", False, "not requested")
+    return Stage("fragments", True, "connected components over shared faces after every "
+                 "insertion (fragment_id, count in history.csv); free pieces stay deformable")
 
 
 def _cadence(analysis) -> str:

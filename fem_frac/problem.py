@@ -13,10 +13,12 @@ from .config import schema
 from .errors import CaseError
 from .fem import loads
 from .fem.space import Space
-from .mesh.mesh import exterior_facets
+from .mesh.mesh import exterior_facets, facet_keys
 from .mesh.selection import box_facets, named_facets
 
 AXES = "xyz"
+# the boundary group of crack faces (fem_frac.fracture.topology.CRACK)
+CRACK = "crack"
 
 
 @dataclass(frozen=True, eq=False)
@@ -56,6 +58,17 @@ class Problem:
     def prescribed(self, t: float) -> np.ndarray:
         """Values ``(k,)`` of the constrained dofs at time ``t``."""
         return self.constraints.values * self.factors(t)[self.constraints.curve]
+
+
+def outer_facets(mesh) -> np.ndarray:
+    """Exterior faces ``(k, 3)`` less the faces of cracks (group ``crack``): what the group
+    ``boundary`` and box selections choose from, so crack faces stay traction-free."""
+    exterior = exterior_facets(mesh.tets)
+    crack = mesh.boundaries.get(CRACK)
+    if crack is None or len(crack) == 0:
+        return exterior
+    keys = facet_keys(exterior, mesh.n_points)
+    return exterior[~np.isin(keys, facet_keys(crack, mesh.n_points))]
 
 
 def _select(space: Space, bc, index: int, exterior: np.ndarray) -> np.ndarray:
@@ -101,7 +114,7 @@ def build_problem(
     if body_force is not None:
         curve_keys.append((("body_force", "curve"), body_force.curve))
     names, curves, curve_of = resolve_curves(curve_keys, load_curves or {}, analysis)
-    exterior = exterior_facets(space.mesh.tets)
+    exterior = outer_facets(space.mesh)
     dof_chunks, value_chunks, curve_chunks = [], [], []
     forces = np.zeros((len(names), space.n_dofs))
     groups: dict[str, np.ndarray] = {}
@@ -161,15 +174,19 @@ def build_problem(
                    described)
 
 
-def free_rigid_modes(space: Space, constrained: np.ndarray) -> list[str]:
+def free_rigid_modes(space: Space, constrained: np.ndarray,
+                     nodes: np.ndarray | None = None) -> list[str]:
     """Rigid-body motions the constraints leave free (names like ``translation x``).
 
-    A static solve with any free mode is singular. Checked on the whole body: translations
-    and the rotations about the centroid, restricted to the constrained dofs.
+    A static solve with any free mode is singular. Checked on the whole body, or on the
+    scalar ``nodes`` of one piece of it (a fragment): translations and the rotations about
+    its centroid, restricted to the constrained dofs among its own.
     """
-    x = space.node_points - space.node_points.mean(axis=0)
+    nodes = np.arange(space.n_nodes) if nodes is None else np.asarray(nodes, dtype=np.int64)
+    x = space.node_points[nodes]
+    x = x - x.mean(axis=0)
     scale = np.abs(x).max() or 1.0
-    modes = np.zeros((space.n_dofs, 6))
+    modes = np.zeros((3 * len(nodes), 6))
     for k in range(3):
         modes[k::3, k] = 1.0
     # rotation about axis k: velocity e_k x x
@@ -177,13 +194,17 @@ def free_rigid_modes(space: Space, constrained: np.ndarray) -> list[str]:
         w = np.zeros(3)
         w[k] = 1.0
         modes[:, 3 + k] = (np.cross(w, x) / scale).ravel()
-    r = modes[constrained]
+    local = np.full(space.n_nodes, -1, dtype=np.int64)
+    local[nodes] = np.arange(len(nodes))
+    c = np.asarray(constrained, dtype=np.int64)
+    c = c[local[c // 3] >= 0]
+    r = modes[3 * local[c // 3] + c % 3]
+    names = [f"translation {a}" for a in AXES] + [f"rotation about {a}" for a in AXES]
     if r.shape[0] == 0:
-        return [f"translation {a}" for a in AXES] + [f"rotation about {a}" for a in AXES]
+        return names
     _, s, vt = np.linalg.svd(r, full_matrices=True)
     rank = int(np.sum(s > 1e-9 * s.max()))
     if rank == 6:
         return []
     free = vt[rank:]
-    names = [f"translation {a}" for a in AXES] + [f"rotation about {a}" for a in AXES]
     return [names[int(np.argmax(np.abs(v)))] for v in free]

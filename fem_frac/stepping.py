@@ -75,12 +75,16 @@ class Ledger:
     external_work: float = 0.0
     initial: float = 0.0
     scale: float = 0.0
+    # energy released by crack insertion where nothing else can take it (no inertia): the
+    # imbalance of the steps retaken on a cracked mesh, see fem_frac.fracture.stage
+    fracture: float = 0.0
 
     @property
     def error(self) -> float:
-        """kinetic + elastic + plastic work + damping work - external work - initial."""
+        """kinetic + elastic + plastic work + damping work + fracture - external work -
+        initial."""
         return (self.kinetic + self.elastic + self.plastic_work + self.damping_work
-                - self.external_work - self.initial)
+                + self.fracture - self.external_work - self.initial)
 
     @property
     def relative_error(self) -> float:
@@ -99,6 +103,8 @@ class StepInfo:
     solves: int = 0
     factorizations: int = 0
     cutbacks: int = 0
+    insertions: int = 0  # crack sites opened in the step
+    passes: int = 0  # re-solves of the step on a cracked mesh
 
 
 @dataclass(frozen=True)
@@ -114,6 +120,8 @@ class NotConverged(SolverError):
     """Equilibrium iteration of one step stopped at its iteration cap."""
 
 
+# A correction below this fraction of the displacement is round-off (a few hundred ulps).
+ROUND_OFF = 1e-13
 # Past corrections Anderson mixing keeps (Walker & Ni 2011 use 1 to 10; 5 is a common choice).
 ANDERSON_DEPTH = 5
 
@@ -259,7 +267,7 @@ def account(ledger: Ledger, old: State, new: State, problem: Problem, law: Mater
     stored = kinetic + elastic + plastic_work + abs(damping)
     scale = max(ledger.scale, stored, abs(external))
     return Ledger(kinetic, elastic, hardening, plastic_work, damping, external,
-                  ledger.initial, scale)
+                  ledger.initial, scale, ledger.fracture)
 
 
 class ImplicitStepper:
@@ -313,7 +321,9 @@ class ImplicitStepper:
             f_ext = f_ext - alpha * problem.external_force(old.t)
         history = alpha * (damp_old + old.internal_force) if alpha else 0.0
         u_pred, v_pred = s.predict(old.u, old.v, old.a) if inertia else (old.u, old.v)
-        f_ext_norm = _norm(f_ext)
+        # the step's force scale: loads, and the internal force it starts from (a body cut
+        # free under prescribed displacements ends with f_ext = f_int = 0)
+        f_ext_norm = max(_norm(f_ext), _norm(old.internal_force))
 
         u = old.u.copy()
         u[fixed] = problem.prescribed(t)
@@ -343,6 +353,12 @@ class ImplicitStepper:
                 if not np.isfinite(relative):
                     _diagnose(step, u, stress, residual)
                 if relative <= self.equilibrium.tolerance or method == "single_pass":
+                    break
+                if _norm(correction) <= ROUND_OFF * _norm(u[free]):
+                    # the last correction moved nothing beyond round-off, so no iteration
+                    # can reduce the residual: it is round-off too, left relative to forces
+                    # that are themselves round-off (a body cut free under prescribed
+                    # displacements carries nothing: f_ext = f_int = 0)
                     break
                 if iterations >= self.equilibrium.max_iterations:
                     raise NotConverged(
@@ -435,59 +451,92 @@ class ExplicitStepper:
 Observer = Callable[[int, State, Ledger, StepInfo], None]
 
 
+def advance(stepper, state: State, start: float, end: float, ledger: Ledger, problem: Problem,
+            law: MaterialLaw, ops: Operators, n: int) -> tuple[State, Ledger, StepInfo]:
+    """Step ``state`` (at ``start``) to ``end``: the interval ``n`` of the time grid.
+
+    A stepper with ``substeps > 1`` takes that many equal steps, each one accounted in the
+    energy ledger. A stepper with ``cutbacks > 0`` halves a step whose equilibrium iteration
+    fails, up to that many times.
+    """
+    substeps = getattr(stepper, "substeps", 1)
+    max_cutbacks = getattr(stepper, "cutbacks", 0)
+    iterations = cutbacks = solves = factorizations = 0
+    # targets still to reach, the next one last; a step that does not converge is
+    # split in two by pushing its midpoint (cutback), down to 2^-max_cutbacks of it
+    pending = [end if k == substeps else start + (end - start) * k / substeps
+               for k in range(substeps, 0, -1)]
+    shortest = (end - start) / substeps / 2**max_cutbacks
+    info = StepInfo(0, 0.0)
+    while pending:
+        t = pending[-1]
+        try:
+            # overflow becomes inf/NaN, which the steppers' finiteness checks stop at once
+            with np.errstate(over="ignore", invalid="ignore"):
+                new, info = stepper.step(state, t, n)
+        except NotConverged as exc:
+            if max_cutbacks == 0:
+                raise
+            if (t - state.t) / 2 < shortest * (1 - 1e-9):
+                raise NotConverged(
+                    f"{exc} (after {cutbacks} cutbacks, down to a step of "
+                    f"{t - state.t:.3g}; the load may exceed what the structure carries)"
+                ) from None
+            pending.append(0.5 * (state.t + t))
+            cutbacks += 1
+            continue
+        pending.pop()
+        ledger = account(ledger, state, new, problem, law, ops)
+        state = new
+        iterations += info.iterations
+        solves += info.solves
+        factorizations += info.factorizations
+    info = replace(info, iterations=iterations, solves=solves,
+                   factorizations=factorizations, cutbacks=cutbacks)
+    return state, ledger, info
+
+
+@dataclass(frozen=True, eq=False)
+class System:
+    """What a topology change replaces: the problem, operators and stepper on a new mesh."""
+
+    problem: Problem
+    ops: Operators
+    stepper: object
+
+
+# ``after_step(n, start, start_ledger, end, ledger, info)``: a stage run between steps (crack
+# insertion) that may retake the step on a new topology; returns ``(end, ledger, info,
+# system)``, ``system`` None when the topology is unchanged.
+AfterStep = Callable[..., tuple]
+
+
 def march(stepper, state: State, times: np.ndarray, problem: Problem, law: MaterialLaw,
-          ops: Operators, observe: Observer, counters: Counters) -> tuple[State, Ledger]:
+          ops: Operators, observe: Observer, counters: Counters,
+          after_step: AfterStep | None = None) -> tuple[State, Ledger]:
     """Take the steps to ``times[1:]``; ``observe`` sees every committed step (and step 0).
 
-    A stepper with ``substeps > 1`` takes that many equal steps per interval, each one
-    accounted in the energy ledger; ``observe`` sees the interval's end. A stepper with
-    ``cutbacks > 0`` halves a step whose equilibrium iteration fails, up to that many times.
+    Each interval is taken by :func:`advance` (substeps, cutbacks); ``after_step`` then
+    sees it and may replace the system (see :data:`AfterStep`) for the steps that follow.
     """
     ledger = initial_ledger(state, law, ops)
     observe(0, state, ledger, StepInfo(0, 0.0))
-    substeps = getattr(stepper, "substeps", 1)
-    max_cutbacks = getattr(stepper, "cutbacks", 0)
     for n in range(1, len(times)):
         t0 = time.perf_counter()
         start, end = float(times[n - 1]), float(times[n])
-        iterations = cutbacks = solves = factorizations = 0
-        # targets still to reach, the next one last; a step that does not converge is
-        # split in two by pushing its midpoint (cutback), down to 2^-max_cutbacks of it
-        pending = [end if k == substeps else start + (end - start) * k / substeps
-                   for k in range(substeps, 0, -1)]
-        shortest = (end - start) / substeps / 2**max_cutbacks
-        while pending:
-            t = pending[-1]
-            try:
-                # overflow becomes inf/NaN, which the steppers' finiteness checks stop at once
-                with np.errstate(over="ignore", invalid="ignore"):
-                    new, info = stepper.step(state, t, n)
-            except NotConverged as exc:
-                if max_cutbacks == 0:
-                    raise
-                if (t - state.t) / 2 < shortest * (1 - 1e-9):
-                    raise NotConverged(
-                        f"{exc} (after {cutbacks} cutbacks, down to a step of "
-                        f"{t - state.t:.3g}; the load may exceed what the structure carries)"
-                    ) from None
-                pending.append(0.5 * (state.t + t))
-                cutbacks += 1
-                continue
-            pending.pop()
-            ledger = account(ledger, state, new, problem, law, ops)
-            state = new
-            iterations += info.iterations
-            solves += info.solves
-            factorizations += info.factorizations
-        info = replace(info, iterations=iterations, solves=solves,
-                       factorizations=factorizations, cutbacks=cutbacks)
+        first, first_ledger = state, ledger
+        state, ledger, info = advance(stepper, state, start, end, ledger, problem, law, ops, n)
+        if after_step is not None:
+            state, ledger, info, system = after_step(n, first, first_ledger, state, ledger,
+                                                     info)
+            if system is not None:
+                stepper, problem, ops = system.stepper, system.problem, system.ops
         counters.steps += 1
         counters.iterations += info.iterations
         counters.solves += info.solves
         counters.factorizations += info.factorizations
-        counters.cutbacks += cutbacks
+        counters.cutbacks += info.cutbacks
         counters.max_residual = max(counters.max_residual, info.residual)
         counters.seconds["steps"] = counters.seconds.get("steps", 0.0) + time.perf_counter() - t0
         observe(n, state, ledger, info)
     return state, ledger
-

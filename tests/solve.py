@@ -22,3 +22,17 @@ def solve(case_dict: dict, case_dir: Path = Path(".")):
     """(case, model, displacement) of a static case."""
     setup, state, _, _ = run(case_dict, case_dir)
     return setup.case, setup.model, state.u
+
+
+def run_fracture(case_dict: dict, case_dir: Path = Path("."), observe=None):
+    """``(setup, fracture stage, final state, ledger, counters)`` of a case with fracture;
+    ``stage.current`` is the final discretization (mesh, space, operators)."""
+    from fem_frac.driver import fracture_stage
+
+    case = Case.model_validate(case_dict)
+    timer = StageTimer()
+    setup = prepare(case, case_dir, timer)
+    stage = fracture_stage(setup, timer)
+    state, ledger, counters = simulate(setup, timer, observe or (lambda *a: None),
+                                       fracture=stage)
+    return setup, stage, state, ledger, counters

@@ -152,6 +152,70 @@ class Plasticity(Section):
     kinematic_hardening: NonNegativeFloat = 0.0
 
 
+# --- fracture -----------------------------------------------------------------------------
+
+
+class Smoothing(Section):
+    """How element stresses are smoothed before the strength check. ``neighbours``: the
+    volume-weighted mean over the elements reachable through shared faces whose centroids lie
+    within ``length`` (or ``rings`` face-steps); ``nodal``: projection to the vertices
+    (volume-weighted) and back. Smoothing never reaches across a crack."""
+
+    method: Literal["neighbours", "nodal"] = "neighbours"
+    length: PositiveFloat | None = Field(
+        default=None, description="smoothing radius in the case's length unit (physical: "
+        "set it from the material, e.g. a few grain sizes or the process-zone size)")
+    rings: Annotated[int, Field(ge=0, le=10)] | None = Field(
+        default=None, description="or: neighbour rings through shared faces (0: none)")
+
+    @model_validator(mode="after")
+    def _one_size(self):
+        if (self.length is None) == (self.rings is None):
+            raise ValueError("give exactly one of 'length' or 'rings'")
+        return self
+
+
+class Perturbation(Section):
+    """Seeded random tilt of every crack normal, uniform on the cap of half-angle
+    ``angle`` (degrees) around the principal direction; the same seed gives the same run."""
+
+    angle: Annotated[float, Field(gt=0.0, lt=90.0)]
+    seed: int = 0
+
+
+class Protect(Section):
+    """Where no crack may open: the vertices of a named boundary, of a mesh volume group
+    (``subdomain``) or of the elements whose centroid lies in ``box``."""
+
+    boundary: str | None = None
+    subdomain: str | None = None
+    box: BoxSelection | None = None
+
+    @model_validator(mode="after")
+    def _one(self):
+        if sum(x is not None for x in (self.boundary, self.subdomain, self.box)) != 1:
+            raise ValueError("give exactly one of 'boundary', 'subdomain' or 'box'")
+        return self
+
+
+class Fracture(Section):
+    """Cracks open where the smoothed largest principal stress exceeds ``tensile_strength``,
+    perpendicular to its direction, by separating the mesh along faces (vertices duplicated).
+
+    Within a step, up to ``passes`` batches are inserted; each batch holds at most
+    ``batch_size`` sites (no two within one smoothing neighbourhood) and is followed by a
+    re-solve of the step on the new mesh; a step inserts at most
+    ``max_insertions_per_step`` sites in all."""
+
+    tensile_strength: PositiveFloat
+    smoothing: Smoothing
+    batch_size: PositiveInt = 4
+    passes: Annotated[int, Field(ge=1, le=1000)] = 8
+    max_insertions_per_step: PositiveInt = 64
+    perturbation: Perturbation | None = None
+    protect: list[Protect] = []
+
+
 # --- load curves --------------------------------------------------------------------------
 
 
@@ -405,6 +469,9 @@ class Output(Section):
         default=None, description="default: out/<case name> under the working directory"
     )
     name: str | None = Field(default=None, description="base name of the .pvd; default: case")
+    crack_surface: bool = Field(
+        default=False, description="with fracture: also write the crack faces as a surface "
+        "series <name>_crack.pvd (written, empty until the first crack, at every output step)")
 
 
 class Reference(Section):
@@ -431,5 +498,6 @@ class Case(Section):
     plasticity: Plasticity | None = None
     load_curves: dict[str, LoadCurve] = {}
     analysis: Analysis = StaticAnalysis()
+    fracture: Fracture | None = None
     reference: Reference | None = None
     output: Output = Output()

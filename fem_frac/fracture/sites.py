@@ -1,0 +1,161 @@
+"""Where a batch of cracks opens: elements over strength -> (vertex, normal) split sites.
+
+DESIGN §2: where the smoothed largest principal stress ``sigma1`` of an element exceeds the
+tensile strength, a crack opens perpendicular to its direction ``n`` through one of the
+element's vertices. The rules, all deterministic:
+
+- candidates are taken in decreasing ``sigma1`` (ties: lower element id first);
+- a batch holds at most ``limit`` sites and no two candidates of one smoothing
+  neighbourhood: their smoothed stresses are one measurement, which the insertion changes,
+  so the next site there waits for the re-solve;
+- the vertex: one whose plane (through it, normal ``n``) really separates its tets; among
+  those, vertices already on a crack first (cracks grow rather than nucleate anew), then the
+  one whose plane passes closest to the element's centroid; vertices of protected parts
+  never split, and a vertex is split at most once per batch.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.sparse as sp
+
+# Candidates examined per batch, as a multiple of the batch size: bounds the (Python) scan
+# over candidates whose vertices cannot split.
+SCAN_FACTOR = 16
+
+
+@dataclass(frozen=True, eq=False)
+class Sites:
+    """A batch of crack sites: ``elements (k,)`` over strength, the ``vertices (k,)`` to split
+    and the crack ``normals (k, 3)`` (unit), with the smoothed ``stress (k,)`` that
+    triggered each."""
+
+    elements: np.ndarray
+    vertices: np.ndarray
+    normals: np.ndarray
+    stress: np.ndarray
+
+    def __len__(self) -> int:
+        return int(self.vertices.shape[0])
+
+
+def vertex_tets(tets: np.ndarray, n_points: int) -> sp.csr_matrix:
+    """``(n_points, n_tets)`` 0/1 incidence: row ``v`` lists the tets holding vertex ``v``."""
+    m = tets.shape[0]
+    rows = np.asarray(tets, dtype=np.int64).ravel()
+    cols = np.repeat(np.arange(m, dtype=np.int64), 4)
+    inc = sp.csr_matrix((np.ones(rows.size, dtype=np.int8), (rows, cols)), shape=(n_points, m))
+    inc.sum_duplicates()
+    return inc
+
+
+@dataclass(frozen=True, eq=False)
+class Star:
+    """Per-topology lookups for :func:`splits`: ``incidence`` (:func:`vertex_tets`), the face
+    ``adjacency (m, m)`` and ``held (m, 4)``: whether the face opposite local vertex ``i`` of
+    a tet is shared with another tet."""
+
+    incidence: sp.csr_matrix
+    adjacency: sp.csr_matrix
+    held: np.ndarray
+
+
+def star(tets: np.ndarray, n_points: int) -> Star:
+    from .topology import _face_pairs, face_adjacency
+
+    r1, r2, _, _ = _face_pairs(tets)
+    held = np.zeros(4 * tets.shape[0], dtype=bool)
+    held[r1] = held[r2] = True  # face row 4 t + i is face i of tet t, opposite vertex i
+    return Star(vertex_tets(tets, n_points), face_adjacency(tets), held.reshape(-1, 4))
+
+
+def splits(points: np.ndarray, tets: np.ndarray, centroids: np.ndarray, s: Star, vertex: int,
+           normal: np.ndarray) -> bool:
+    """Whether the plane through ``vertex`` with ``normal`` opens a crack there: it leaves
+    tets of the vertex on both sides (the rule of
+    :func:`~fem_frac.fracture.topology.split_vertex`: zero counts as +), and every group of
+    same-side tets joined through faces at the vertex keeps a face away from the vertex
+    shared with the rest of the mesh. A group without one would come off as a loose piece
+    of a few tets: a crack around a corner, not across the body."""
+    from scipy.sparse.csgraph import connected_components
+
+    around = s.incidence.indices[s.incidence.indptr[vertex]:s.incidence.indptr[vertex + 1]]
+    side = (centroids[around] - points[vertex]) @ normal < 0.0
+    if not side.any() or side.all():
+        return False
+    sub = s.adjacency[around][:, around].tocoo()
+    same = side[sub.row] == side[sub.col]
+    graph = sp.coo_matrix((np.ones(int(same.sum())), (sub.row[same], sub.col[same])),
+                          shape=(around.size, around.size))
+    n_groups, group = connected_components(graph, directed=False)
+    local = np.argmax(tets[around] == vertex, axis=1)
+    anchored = np.zeros(n_groups, dtype=bool)
+    anchored[group[s.held[around, local]]] = True
+    return bool(anchored.all())
+
+
+def tilt(normals: np.ndarray, angle: float, rng: np.random.Generator) -> np.ndarray:
+    """Unit normals tilted uniformly on the spherical cap of half-angle ``angle`` (radians)
+    around each of ``normals (k, 3)``."""
+    k = normals.shape[0]
+    n = normals / np.linalg.norm(normals, axis=1, keepdims=True)
+    cos = 1.0 - rng.random(k) * (1.0 - np.cos(angle))  # uniform on the cap's area
+    phi = 2.0 * np.pi * rng.random(k)
+    # an orthonormal pair perpendicular to n: cross with the axis least aligned with it
+    axis = np.eye(3)[np.argmin(np.abs(n), axis=1)]
+    e1 = np.cross(n, axis)
+    e1 /= np.linalg.norm(e1, axis=1, keepdims=True)
+    e2 = np.cross(n, e1)
+    sin = np.sqrt(np.maximum(1.0 - cos**2, 0.0))
+    return cos[:, None] * n + sin[:, None] * (np.cos(phi)[:, None] * e1
+                                              + np.sin(phi)[:, None] * e2)
+
+
+def select_sites(points: np.ndarray, tets: np.ndarray, sigma1: np.ndarray,
+                 direction: np.ndarray, strength: float, neighbourhood: sp.csr_matrix,
+                 on_crack: np.ndarray, protected: np.ndarray, limit: int,
+                 lookups: Star | None = None) -> Sites:
+    """The batch of at most ``limit`` sites (module docstring).
+
+    ``points (n, 3)``, ``tets (m, 4)`` reference mesh; ``sigma1 (m,)``, ``direction (m, 3)``
+    the smoothed largest principal stress and its unit direction; ``neighbourhood (m, m)``
+    the smoothing operator's pattern; ``on_crack``/``protected`` ``(n,)`` bool per vertex;
+    ``lookups`` the :func:`star` of the mesh (made here when not given).
+    """
+    tets = np.asarray(tets, dtype=np.int64)
+    free_vertex = ~protected[tets]  # (m, 4)
+    candidates = np.flatnonzero((sigma1 > strength) & free_vertex.any(axis=1))
+    empty = Sites(np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros((0, 3)), np.zeros(0))
+    if candidates.size == 0 or limit <= 0:
+        return empty
+    candidates = candidates[np.lexsort((candidates, -sigma1[candidates]))]
+    candidates = candidates[: SCAN_FACTOR * limit]
+    centroids = points[tets].mean(axis=1)
+    lookups = lookups if lookups is not None else star(tets, points.shape[0])
+    pattern = neighbourhood.tocsr()
+    claimed = np.zeros(tets.shape[0], dtype=bool)
+    used = np.zeros(points.shape[0], dtype=bool)
+    chosen: list[tuple[int, int]] = []
+    for e in candidates.tolist():
+        if claimed[e]:
+            continue
+        n = direction[e]
+        corners = tets[e]
+        distance = np.abs((points[corners] - centroids[e]) @ n)
+        preference = np.lexsort((corners, distance, ~on_crack[corners]))
+        for v in corners[preference].tolist():
+            if protected[v] or used[v] or not splits(points, tets, centroids, lookups, v, n):
+                continue
+            chosen.append((e, v))
+            used[v] = True
+            claimed[pattern.indices[pattern.indptr[e]:pattern.indptr[e + 1]]] = True
+            claimed[e] = True
+            break
+        if len(chosen) == limit:
+            break
+    if not chosen:
+        return empty
+    elements, vertices = (np.array(c, dtype=np.int64) for c in zip(*chosen, strict=True))
+    return Sites(elements, vertices, direction[elements].copy(), sigma1[elements].copy())

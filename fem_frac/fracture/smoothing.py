@@ -1,0 +1,204 @@
+"""Smoothing of element stresses before a fracture criterion, and principal stresses.
+
+P1 tets carry one (piecewise constant) stress per element, noisy from element to element;
+a fracture criterion evaluated on it would crack along the mesh's own noise. This module
+builds a sparse, row-stochastic ``(m, m)`` operator ``S`` over the ``m`` tets that replaces
+each element value by a weighted mean over a neighbourhood of it, and evaluates the largest
+principal stress and its direction of the result.
+
+Shapes and units:
+
+- ``points (n, 3)``, ``tets (m, 4)`` int64 (as in :class:`~fem_frac.mesh.Mesh`); ``length``
+  in the units of ``points``.
+- stresses are Mandel 6-vectors, components first (VTK order XX, YY, ZZ, XY, YZ, XZ, shear
+  scaled by sqrt(2), see :mod:`fem_frac.fem.tensors`): ``(6, m)`` element averages, in
+  whatever stress unit the caller uses; principal stresses come back in the same unit.
+- ``smoothed = stress @ S.T``; for a per-element scalar ``x (m,)``, ``S @ x``.
+
+Two methods:
+
+- ``"neighbours"``: volume-weighted mean over the elements reachable through *face
+  adjacency* (:func:`~fem_frac.fracture.topology.face_adjacency`), within a number of
+  face-steps (``rings``) or along paths that stay within a distance ``length`` of the
+  element's centroid (``length``).
+- ``"nodal"``: volume-weighted projection onto the vertices, then back to the elements
+  (mean of the four vertex values), applied one or more times.
+
+Why smoothing stops at cracks: a crack is inserted by giving the tets on each side their
+own copies of the vertices (:func:`~fem_frac.fracture.topology.open_crack`). Tets on the two
+sides of a crack face, and tets of different fragments, then share no face, so face
+adjacency never links them; for ``"nodal"`` they share no vertex across an opened face
+either. Only around a crack front (where the vertex copies end) can ``"nodal"`` still mix
+the two sides, through the vertices on the front, which are genuinely shared.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import scipy.sparse as sp
+
+from ..fem.tensors import tensor_from_mandel
+from ..mesh.mesh import TET_EDGES, tet_volumes
+from .topology import face_adjacency
+
+METHODS = ("neighbours", "nodal")
+# positions of the 3x3 entries in a (6,) VTK-ordered component vector
+_MATRIX_INDEX = np.array([[0, 3, 5], [3, 1, 4], [5, 4, 2]])
+
+
+def centroids(points: np.ndarray, tets: np.ndarray) -> np.ndarray:
+    """Tet centroids ``(m, 3)``."""
+    return np.asarray(points, dtype=float)[np.asarray(tets, dtype=np.int64)].mean(axis=1)
+
+
+def mean_edge_length(points: np.ndarray, tets: np.ndarray) -> float:
+    """Mean length of the distinct edges of the mesh (each edge counted once)."""
+    points = np.asarray(points, dtype=float)
+    pairs = np.sort(np.asarray(tets, dtype=np.int64)[:, TET_EDGES].reshape(-1, 2), axis=1)
+    keys = np.unique(pairs[:, 0] * np.int64(points.shape[0]) + pairs[:, 1])
+    a, b = np.divmod(keys, np.int64(points.shape[0]))
+    return float(np.linalg.norm(points[a] - points[b], axis=1).mean())
+
+
+def _pattern(matrix) -> sp.csr_matrix:
+    """The 0/1 float CSR pattern of ``matrix`` (duplicates summed, indices sorted)."""
+    out = sp.csr_matrix(matrix, dtype=float, copy=True)
+    out.sum_duplicates()
+    out.eliminate_zeros()
+    out.data[:] = 1.0
+    return out
+
+
+def _volume_weighted(pattern: sp.csr_matrix, volumes: np.ndarray) -> sp.csr_matrix:
+    """Rows of ``pattern`` weighted by ``volumes[j]`` and normalized to sum 1."""
+    w = sp.csr_matrix(pattern.multiply(volumes[None, :]))
+    _divide_rows(w)
+    return w
+
+
+def _divide_rows(w: sp.csr_matrix) -> None:
+    """Divide each row of ``w`` by its sum, in place (rows without entries stay empty;
+    dividing rather than multiplying by the reciprocal keeps a lone entry exactly 1)."""
+    row = np.repeat(np.arange(w.shape[0]), np.diff(w.indptr))
+    w.data /= np.bincount(row, weights=w.data, minlength=w.shape[0])[row]
+
+
+def _length_neighbourhoods(step: sp.csr_matrix, c: np.ndarray, length: float) -> sp.csr_matrix:
+    """Pattern of pairs ``(i, j)`` joined by a path of ``step`` (which holds the diagonal)
+    whose every element has its centroid within ``length`` of ``c[i]``.
+
+    Grown ring by ring: extend the pairs added last ring by one step, keep the candidates
+    not held yet and within ``length``, stop when a ring adds nothing. Cost grows with the
+    number of pairs (about the number of tets in a ball of radius ``length`` per row).
+    """
+    m = c.shape[0]
+    reach = sp.identity(m, dtype=float, format="csr")
+    front = reach
+    while front.nnz:
+        cand = _pattern(front @ step)
+        cand = (cand - cand.multiply(reach)).tocsr()
+        cand.eliminate_zeros()
+        cand = cand.tocoo()
+        near = np.linalg.norm(c[cand.row] - c[cand.col], axis=1) <= length
+        front = sp.csr_matrix(
+            (np.ones(np.count_nonzero(near)), (cand.row[near], cand.col[near])), shape=(m, m)
+        )
+        reach = sp.csr_matrix(reach + front)
+    return reach
+
+
+def _vertex_projection(points, tets, volumes) -> tuple[sp.csr_matrix, sp.csr_matrix]:
+    """``(A (n, m), B (m, n))``: A = volume-weighted mean over the tets holding a vertex
+    (zero rows for vertices no tet uses), B = mean of a tet's four vertices."""
+    n, m = np.asarray(points).shape[0], tets.shape[0]
+    elem = np.repeat(np.arange(m, dtype=np.int64), 4)
+    vert = tets.reshape(-1)
+    a = sp.csr_matrix((volumes[elem], (vert, elem)), shape=(n, m))
+    _divide_rows(a)
+    b = sp.csr_matrix((np.full(4 * m, 0.25), (elem, vert)), shape=(m, n))
+    return a, b
+
+
+def smoothing_operator(
+    points: np.ndarray,
+    tets: np.ndarray,
+    *,
+    length: float | None = None,
+    rings: int | None = None,
+    method: str = "neighbours",
+) -> sp.csr_matrix:
+    """The ``(m, m)`` row-stochastic CSR smoothing operator ``S`` (``smoothed = x @ S.T``).
+
+    Exactly one of ``length`` (> 0, units of ``points``) and ``rings`` (integer >= 0).
+
+    ``method="neighbours"``: ``S[i, j] = V_j / sum_k V_k`` over the neighbourhood of ``i``
+    (``V``: tet volumes): with ``rings=r`` the tets within ``r`` face-steps of ``i``; with
+    ``length`` the tets reachable from ``i`` through face-sharing paths whose every tet has
+    its centroid within ``length`` of the centroid of ``i``. ``i`` itself always belongs.
+
+    ``method="nodal"``: ``S = (B A)^r``, A the volume-weighted mean over the tets holding a
+    vertex, B the mean over a tet's four vertices. ``rings=r`` gives ``r`` applications
+    (``r = 0`` the identity); ``length`` gives the smallest ``r >= 1`` with
+    ``r * mean_edge_length(points, tets) >= length`` (one application spreads a value over
+    roughly one edge length).
+    """
+    if (length is None) == (rings is None):
+        raise ValueError("give exactly one of length and rings")
+    if length is not None and not length > 0:
+        raise ValueError(f"length must be > 0, got {length!r}")
+    if rings is not None and (isinstance(rings, bool) or int(rings) != rings or rings < 0):
+        raise ValueError(f"rings must be an integer >= 0, got {rings!r}")
+    if method not in METHODS:
+        raise ValueError(f"unknown smoothing method {method!r}; expected one of {METHODS}")
+    points = np.asarray(points, dtype=float)
+    tets = np.asarray(tets, dtype=np.int64)
+    m = tets.shape[0]
+    volumes = np.abs(tet_volumes(points, tets))
+    identity = sp.identity(m, dtype=float, format="csr")
+
+    if method == "neighbours":
+        step = _pattern(face_adjacency(tets) + identity)
+        if rings is not None:
+            reach = identity
+            for _ in range(int(rings)):
+                reach = _pattern(reach @ step)
+        else:
+            reach = _length_neighbourhoods(step, centroids(points, tets), float(length))
+        return _volume_weighted(reach, volumes)
+
+    if rings is not None:
+        r = int(rings)
+    else:
+        r = max(1, int(np.ceil(float(length) / mean_edge_length(points, tets))))
+    a, b = _vertex_projection(points, tets, volumes)
+    once = sp.csr_matrix(b @ a)
+    out = identity
+    for _ in range(r):
+        out = sp.csr_matrix(out @ once)
+    out.sort_indices()
+    return out
+
+
+def smooth(operator, element_stress: np.ndarray) -> np.ndarray:
+    """Apply ``operator (m, m)`` to element values ``(k, m)`` (e.g. ``(6, m)`` stresses):
+    ``element_stress @ operator.T``, same shape."""
+    x = np.asarray(element_stress, dtype=float)
+    return np.asarray((operator @ x.T).T)
+
+
+def principal_stress(element_stress: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Largest principal stress and its unit direction of Mandel stresses ``(6, ...)``.
+
+    Returns ``(sigma1 (...), direction (..., 3))`` (``(m,)`` and ``(m, 3)`` for ``(6, m)``),
+    from batched :func:`numpy.linalg.eigh`. Each direction is oriented so that its
+    largest-magnitude component is positive (the first such one on a tie), so the result
+    is reproducible; where the largest eigenvalue is repeated the direction is one unit
+    vector of its eigenspace, whichever LAPACK returns.
+    """
+    t = tensor_from_mandel(np.asarray(element_stress, dtype=float))
+    a = np.moveaxis(t[_MATRIX_INDEX], (0, 1), (-2, -1))  # (..., 3, 3)
+    values, vectors = np.linalg.eigh(a)
+    d = vectors[..., :, -1]
+    k = np.argmax(np.abs(d), axis=-1)[..., None]
+    sign = np.where(np.take_along_axis(d, k, axis=-1) < 0.0, -1.0, 1.0)
+    return values[..., -1], d * sign

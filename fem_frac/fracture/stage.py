@@ -1,0 +1,218 @@
+"""The fracture stage between steps: find crack sites, open them, re-solve the step.
+
+After a step is committed on the current mesh (DESIGN §3, steps 3-4), up to ``passes``
+times: smooth the element stresses, take the largest principal stress and its direction,
+choose a batch of sites (:mod:`~fem_frac.fracture.sites`), open them
+(:func:`~fem_frac.fracture.topology.open_crack`), rebuild the discretization on the new mesh
+(operators refactorized once per batch), carry the state at the start of the step over to it
+and take the step again. The step that is finally committed is the last re-solve.
+
+Carrying a state over: nodal values are copied to the new nodes, element state stays with
+its element (elements are never cut). That keeps the displacement field, the stresses, the
+elastic and kinetic energies, the mass and the linear and angular momenta exactly. With
+inertia the acceleration is re-balanced on the new mesh (the force on a vertex is now shared
+by its copies), so the energy ledger of the re-solved step still balances; without inertia
+the energy the crack releases has nowhere to go and is booked as ``Ledger.fracture``.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from ..config import schema
+from ..errors import CaseError, SolverError
+from ..mesh.mesh import Mesh
+from ..problem import free_rigid_modes
+from ..stepping import Ledger, State, StepInfo, System, advance
+from ..writers.fields import cell_average
+from .remap import dof_transfer, node_transfer, transfer_plastic
+from .sites import select_sites, star, tilt
+from .smoothing import principal_stress, smooth, smoothing_operator
+from .summary import crack_measures
+from .topology import CRACK, Transfer, fragments, open_crack
+
+# ``build(mesh)`` -> the discretization on a mesh: an object with ``model`` (``mesh``,
+# ``space``, ``problem``), ``ops``, ``constrained`` and ``stepper`` (see fem_frac.driver).
+Build = Callable[[Mesh], object]
+
+
+@dataclass(frozen=True)
+class Batch:
+    """One insertion batch, for the log and the history."""
+
+    step: int
+    sites: int
+    new_vertices: int
+    max_stress: float
+    seconds: float
+
+
+def protected_vertices(config: schema.Fracture, mesh: Mesh) -> np.ndarray:
+    """``(n_points,)`` bool: vertices of the ``protect`` entries, which never split."""
+    mask = np.zeros(mesh.n_points, dtype=bool)
+    centroids = None
+    for i, p in enumerate(config.protect):
+        if p.boundary is not None:
+            if p.boundary not in mesh.boundaries:
+                known = ", ".join(sorted(mesh.boundaries)) or "none"
+                raise CaseError(("fracture", "protect", i, "boundary"),
+                                f"the mesh has no boundary {p.boundary!r} (groups: {known})")
+            mask[np.asarray(mesh.boundaries[p.boundary]).ravel()] = True
+            continue
+        if p.subdomain is not None:
+            if p.subdomain not in mesh.subdomains:
+                known = ", ".join(sorted(mesh.subdomains)) or "none"
+                raise CaseError(("fracture", "protect", i, "subdomain"),
+                                f"no volume group {p.subdomain!r} in the mesh (groups: {known})")
+            tets = np.asarray(mesh.subdomains[p.subdomain], dtype=np.int64)
+        else:
+            if centroids is None:
+                centroids = mesh.points[mesh.tets].mean(axis=1)
+            lo, hi = np.asarray(p.box.min), np.asarray(p.box.max)
+            tets = np.flatnonzero(np.all((centroids >= lo) & (centroids <= hi), axis=1))
+            if tets.size == 0:
+                raise CaseError(("fracture", "protect", i, "box"), "selects no elements")
+        mask[mesh.tets[tets].ravel()] = True
+    return mask
+
+
+def smoothing_of(config: schema.Fracture, mesh: Mesh):
+    s = config.smoothing
+    return smoothing_operator(mesh.points, mesh.tets, length=s.length, rings=s.rings,
+                              method=s.method)
+
+
+class FractureStage:
+    """The ``after_step`` hook of :func:`~fem_frac.stepping.march` for a ``fracture:``
+    section; ``current`` is the discretization in use, ``labels`` the fragment of every
+    element."""
+
+    def __init__(self, config: schema.Fracture, law, current, build: Build, inertia: bool,
+                 log: Callable[[str], None] | None = None):
+        self.config, self.law, self.build, self.inertia = config, law, build, inertia
+        self.log = log or (lambda _: None)
+        self.current = current
+        self.batches: list[Batch] = []
+        self.rebuild_seconds = 0.0
+        self._prepare(current.model.mesh)
+
+    def _prepare(self, mesh: Mesh) -> None:
+        """Per-topology caches: smoothing operator, protected vertices, fragments."""
+        self.smoothing = smoothing_of(self.config, mesh)
+        self.protected = protected_vertices(self.config, mesh)
+        self.n_fragments, self.labels = fragments(mesh.tets)
+        self.star = star(mesh.tets, mesh.n_points)
+        self.crack = crack_measures(mesh)
+
+    # -- the hook --------------------------------------------------------------------------
+
+    def __call__(self, n: int, start: State, start_ledger: Ledger, end: State,
+                 ledger: Ledger, info: StepInfo):
+        cfg = self.config
+        regular = ledger  # the step on the uncracked mesh
+        changed = False
+        inserted = passes = 0
+        while passes < cfg.passes and inserted < cfg.max_insertions_per_step:
+            limit = min(cfg.batch_size, cfg.max_insertions_per_step - inserted)
+            t0 = time.perf_counter()
+            sites = self.sites(end, n, passes, limit)
+            if len(sites) == 0:
+                break
+            old = self.current
+            mesh, transfer = open_crack(old.model.mesh, sites.vertices, sites.normals)
+            if transfer.n_new_points == old.model.mesh.n_points:
+                break
+            new = self.build(mesh)
+            self._prepare(mesh)
+            if not self.inertia:
+                self._check_supports(new, n)
+            start = self.carry(start, old, new, transfer)  # the next pass starts from it
+            self.current = new
+            self.rebuild_seconds += time.perf_counter() - t0
+            end, ledger, step_info = advance(new.stepper, start, start.t, end.t,
+                                             start_ledger, new.model.problem, self.law,
+                                             new.ops, n)
+            info = replace(step_info, iterations=info.iterations + step_info.iterations,
+                           solves=info.solves + step_info.solves,
+                           factorizations=info.factorizations + step_info.factorizations,
+                           cutbacks=info.cutbacks + step_info.cutbacks)
+            batch = Batch(n, len(sites), transfer.n_new_points - old.model.mesh.n_points,
+                          float(sites.stress.max()), time.perf_counter() - t0)
+            self.batches.append(batch)
+            inserted += len(sites)
+            passes += 1
+            changed = True
+        if not changed:
+            return end, ledger, info, None
+        if not self.inertia:
+            # the re-solved step's imbalance beyond the regular step's is the released energy
+            ledger = replace(ledger, fracture=ledger.fracture - (ledger.error - regular.error))
+        info = replace(info, insertions=inserted, passes=passes)
+        cur = self.current
+        self.log(f"fracture   step {n}: {inserted} site(s) in {passes} pass(es), "
+                 f"{self.crack.faces} crack faces, {self.n_fragments} fragment(s)")
+        return end, ledger, info, System(cur.model.problem, cur.ops, cur.stepper)
+
+    # -- parts -----------------------------------------------------------------------------
+
+    def principal(self, state: State) -> tuple[np.ndarray, np.ndarray]:
+        """Smoothed largest principal stress ``(m,)`` and its direction ``(m, 3)``."""
+        mean = cell_average(self.current.model.space, state.stress)
+        return principal_stress(smooth(self.smoothing, mean))
+
+    def sites(self, state: State, n: int, batch: int, limit: int):
+        mesh = self.current.model.mesh
+        sigma1, direction = self.principal(state)
+        p = self.config.perturbation
+        if p is not None:
+            rng = np.random.default_rng([p.seed, n, batch])
+            direction = tilt(direction, np.radians(p.angle), rng)
+        on_crack = np.zeros(mesh.n_points, dtype=bool)
+        on_crack[np.asarray(mesh.boundaries.get(CRACK, np.zeros((0, 3), int))).ravel()] = True
+        return select_sites(mesh.points, mesh.tets, sigma1, direction,
+                            self.config.tensile_strength, self.smoothing, on_crack,
+                            self.protected, limit, self.star)
+
+    def carry(self, state: State, old, new, transfer: Transfer) -> State:
+        """``state`` of ``old`` onto ``new`` (module docstring)."""
+        dofs = dof_transfer(node_transfer(old.model.space, new.model.space, transfer))
+        u, v, a = state.u[dofs], state.v[dofs], state.a[dofs]
+        stress = transfer.transfer_elemental(state.stress, axis=1)
+        plastic = transfer_plastic(state.plastic, transfer)
+        ops, problem, constrained = new.ops, new.model.problem, new.constrained
+        f_int = ops.strain_operator.internal_force(stress)
+        f_ext = problem.external_force(state.t)
+        fixed, free = constrained.dofs, constrained.free
+        reaction = f_int - f_ext
+        if self.inertia and ops.mass is not None:
+            damping = ops.damping @ v if ops.damping is not None else 0.0
+            unbalanced = f_ext - f_int - damping - ops.mass @ a
+            if np.any(unbalanced[free]):
+                a = a.copy()
+                mass = ops.mass
+                if mass.nnz == mass.shape[0]:  # diagonal (lumped)
+                    a[free] += unbalanced[free] / mass.diagonal()[free]
+                else:
+                    a[free] += constrained.factorize(mass).solve(unbalanced[free])
+            reaction = reaction + ops.mass @ a + damping
+        return State(state.t, u, v, a, stress, plastic, f_int, reaction[fixed])
+
+    def _check_supports(self, new, n: int) -> None:
+        """Without inertia a piece with no support makes the solve singular: say which."""
+        space, dofs = new.model.space, new.constrained.dofs
+        node_fragment = np.empty(space.n_nodes, dtype=np.int64)
+        nodes = space.basis.element_dofs.T
+        node_fragment[nodes] = self.labels[:, None]
+        for k in range(self.n_fragments):
+            free = free_rigid_modes(space, dofs, np.flatnonzero(node_fragment == k))
+            if free:
+                count = int(np.count_nonzero(self.labels == k))
+                raise SolverError(
+                    f"step {n}, stage fracture: a crack cut off a piece of {count} elements "
+                    f"that no support holds ({', '.join(free)} free): a static or "
+                    "quasi-static solve is singular; use a dynamic analysis, or support "
+                    "every piece (output so far kept)")

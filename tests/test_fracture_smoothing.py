@@ -1,0 +1,316 @@
+"""Stress smoothing operators and principal stresses (fem_frac.fracture.smoothing)."""
+
+from __future__ import annotations
+
+from itertools import combinations
+
+import numpy as np
+import pytest
+from scipy.sparse.csgraph import connected_components
+
+from fem_frac.fem.tensors import mandel_from_matrix
+from fem_frac.fracture import face_adjacency, fragments, open_crack
+from fem_frac.fracture.smoothing import (
+    centroids,
+    mean_edge_length,
+    principal_stress,
+    smooth,
+    smoothing_operator,
+)
+from fem_frac.mesh import tet_volumes
+from fem_frac.mesh.mesh import TET_FACES
+from meshes import structured_box
+
+# Row sums and means of a few hundred terms of size <= 1: round-off is a few ulps times the
+# number of terms per row (<= m = 216 here), so 1e-13 is a safe bound with room to spare.
+ROUND = 1e-13
+
+KINDS = [
+    ("neighbours", {"rings": 1}),
+    ("neighbours", {"rings": 3}),
+    ("neighbours", {"length": 0.3}),
+    ("neighbours", {"length": 10.0}),
+    ("nodal", {"rings": 1}),
+    ("nodal", {"rings": 2}),
+    ("nodal", {"length": 0.6}),
+]
+
+
+@pytest.fixture(scope="module")
+def box():
+    return structured_box((4, 3, 3), distortion=0.2, seed=1)
+
+
+@pytest.fixture(scope="module")
+def cracked():
+    """The box cut in two along the full vertex plane x = 0.5: ``(old, new, labels)``."""
+    old = structured_box((4, 3, 3))
+    plane = np.nonzero(np.abs(old.points[:, 0] - 0.5) < 1e-12)[0]
+    assert len(plane) == 16
+    new, _ = open_crack(old, plane, np.tile([1.0, 0.0, 0.0], (len(plane), 1)))
+    n, labels = fragments(new.tets)
+    assert n == 2
+    return old, new, labels
+
+
+def _pairs(s):
+    c = s.tocoo()
+    return c.row, c.col
+
+
+@pytest.mark.parametrize(("method", "kw"), KINDS)
+def test_rows_sum_to_one_and_uniform_field_kept(box, method, kw):
+    s = smoothing_operator(box.points, box.tets, method=method, **kw)
+    m = box.n_tets
+    assert s.shape == (m, m) and s.format == "csr"
+    assert np.all(s.data >= 0.0)
+    np.testing.assert_allclose(np.asarray(s.sum(axis=1)).ravel(), 1.0, rtol=0, atol=ROUND)
+    assert np.all(s.diagonal() > 0)  # the element itself always contributes
+    const = np.array([3.0, -1.0, 2.0, 0.5, -0.25, 1.5])
+    field = np.tile(const[:, None], (1, m))
+    out = smooth(s, field)
+    assert out.shape == (6, m)
+    np.testing.assert_allclose(out, field, rtol=0, atol=ROUND * np.abs(const).max())
+
+
+@pytest.mark.parametrize("method", ["neighbours", "nodal"])
+def test_zero_rings_is_identity(box, method):
+    s = smoothing_operator(box.points, box.tets, rings=0, method=method)
+    assert s.nnz == box.n_tets
+    np.testing.assert_array_equal(s.toarray(), np.eye(box.n_tets))
+
+
+def test_neighbours_volume_weighted_by_hand(box):
+    """Row of one element against face neighbours found by brute force (vertex sets)."""
+    s = smoothing_operator(box.points, box.tets, rings=1).toarray()
+    vol = tet_volumes(box.points, box.tets)
+    assert np.ptp(vol) > 0.1 * vol.mean()  # distorted: the weights really differ
+    faces = [set(map(frozenset, t[TET_FACES].tolist())) for t in box.tets]
+    for i in (0, 57, 131):
+        hood = [j for j in range(box.n_tets) if j == i or faces[i] & faces[j]]
+        assert 2 <= len(hood) <= 5
+        want = np.zeros(box.n_tets)
+        want[hood] = vol[hood] / vol[hood].sum()
+        np.testing.assert_allclose(s[i], want, rtol=1e-14, atol=0)
+
+
+def test_nodal_by_hand(box):
+    """S[i, j] = 1/4 sum over vertices v of i held by j of V_j / (volume around v)."""
+    s = smoothing_operator(box.points, box.tets, rings=1, method="nodal").toarray()
+    vol = tet_volumes(box.points, box.tets)
+    for i in (3, 100):
+        want = np.zeros(box.n_tets)
+        for v in box.tets[i]:
+            holders = np.nonzero(np.any(box.tets == v, axis=1))[0]
+            want[holders] += 0.25 * vol[holders] / vol[holders].sum()
+        np.testing.assert_allclose(s[i], want, rtol=1e-14, atol=0)
+
+
+def test_length_neighbourhoods(box):
+    c = centroids(box.points, box.tets)
+    lengths = [0.15, 0.25, 0.4, 0.7, 2.0]
+    previous = None
+    for length in lengths:
+        s = smoothing_operator(box.points, box.tets, length=length)
+        i, j = _pairs(s)
+        # the operator used np.linalg.norm on the same centroids; the 1e-12 relative slack
+        # only covers a different summation order of three squares
+        assert np.all(np.linalg.norm(c[i] - c[j], axis=1) <= length * (1 + 1e-12))
+        pattern = s.toarray() > 0
+        if previous is not None:
+            assert np.all(pattern[previous])  # a longer length never loses a neighbour
+            assert pattern.sum() > previous.sum()  # (and these lengths really add some)
+        previous = pattern
+    # the whole (connected) box is within 2.0 of every centroid: everyone sees everyone
+    assert previous.all()
+    # below the smallest centroid distance: nothing but the element itself
+    d = np.linalg.norm(c[:, None] - c[None], axis=2)
+    d_min = d[~np.eye(len(c), dtype=bool)].min()
+    s = smoothing_operator(box.points, box.tets, length=0.99 * d_min)
+    np.testing.assert_array_equal(s.toarray(), np.eye(box.n_tets))
+
+
+def test_length_follows_face_paths():
+    """A U-shaped slab: the tops of the two arms are within ``length`` of each other, but
+    the face path between them runs down through the bridge, out of the ball, so they do
+    not see each other. Checked against a per-element search restricted to the ball."""
+    box = structured_box((3, 3, 1), lengths=(3.0, 3.0, 1.0))
+    c = centroids(box.points, box.tets)
+    keep = ~((c[:, 0] > 1.0) & (c[:, 0] < 2.0) & (c[:, 1] > 1.0))  # cut the notch
+    tets = box.tets[keep]
+    c = c[keep]
+    length = 1.9
+    s = smoothing_operator(box.points, tets, length=length)
+    d = np.linalg.norm(c[:, None] - c[None], axis=2)
+    adj = face_adjacency(tets)
+    want = np.zeros_like(d, dtype=bool)
+    for i in range(len(tets)):
+        ball = np.nonzero(d[i] <= length)[0]
+        _, comp = connected_components(adj[ball][:, ball], directed=False)
+        want[i, ball[comp == comp[ball == i]]] = True
+    np.testing.assert_array_equal(s.toarray() > 0, want)
+    assert np.any(want != (d <= length))  # some in-ball tets are really cut off
+
+
+@pytest.mark.parametrize(
+    ("method", "kw"),
+    [
+        ("neighbours", {"rings": 4}),
+        ("neighbours", {"length": 10.0}),
+        ("nodal", {"rings": 3}),
+        ("nodal", {"length": 1.0}),
+    ],
+)
+def test_no_smoothing_across_crack(cracked, method, kw):
+    old, new, labels = cracked
+    s = smoothing_operator(new.points, new.tets, method=method, **kw)
+    i, j = _pairs(s)
+    assert np.all(labels[i] == labels[j])
+    np.testing.assert_allclose(np.asarray(s.sum(axis=1)).ravel(), 1.0, rtol=0, atol=ROUND)
+    # not vacuous: on the uncut mesh the same operator couples the two halves
+    s_old = smoothing_operator(old.points, old.tets, method=method, **kw)
+    i, j = _pairs(s_old)
+    assert np.any(labels[i] != labels[j])
+    if kw.get("length") == 10.0:
+        # within each fragment everyone sees everyone
+        same = labels[:, None] == labels[None]
+        np.testing.assert_array_equal(s.toarray() > 0, same)
+
+
+@pytest.mark.parametrize(("method", "kw"), KINDS)
+def test_linear_field(box, method, kw):
+    """Element averages of a linear stress field are its values at the centroids; S keeps
+    the affine structure exactly: S f(c) = f(S c), f evaluated at the smoothed centroids.
+    For "neighbours" with ``length`` every weight sits within ``length`` of the centroid,
+    so |S f(c) - f(c)| <= |grad f| length (a convex combination of points in the ball)."""
+    rng = np.random.default_rng(3)
+    grad = rng.normal(size=(6, 3))
+    f0 = rng.normal(size=(6, 1))
+    c = centroids(box.points, box.tets)
+    s = smoothing_operator(box.points, box.tets, method=method, **kw)
+    exact = f0 + grad @ c.T
+    out = smooth(s, exact)
+    scale = np.abs(exact).max()
+    np.testing.assert_allclose(out, f0 + grad @ (s @ c).T, rtol=0, atol=ROUND * scale)
+    if method == "neighbours" and "length" in kw:
+        bound = np.linalg.norm(grad, axis=1)[:, None] * kw["length"]
+        assert np.all(np.abs(out - exact) <= bound * (1 + 1e-12))
+
+
+@pytest.mark.parametrize("distortion", [0.0, 0.3])
+def test_linear_field_whole_fragment(cracked, distortion):
+    """A length taking in a whole fragment gives every element the volume-weighted mean of
+    the fragment's tet centroids, which is the fragment's own centroid (first moments add
+    up over the tets, on any mesh), so a linear field is smoothed to its value there."""
+    _, new, labels = cracked
+    points = new.points.copy()
+    if distortion:
+        rng = np.random.default_rng(5)
+        inner = np.all((points > 1e-12) & (points < 1 - 1e-12), axis=1)
+        inner &= np.abs(points[:, 0] - 0.5) > 1e-12  # keep the crack plane flat
+        points[inner] += distortion * 0.25 * rng.uniform(-1, 1, (inner.sum(), 3))
+    s = smoothing_operator(points, new.tets, length=10.0)
+    grad = np.arange(18.0).reshape(6, 3) - 8.0
+    c = centroids(points, new.tets)
+    vol = tet_volumes(points, new.tets)
+    assert np.all(vol > 0)
+    out = smooth(s, grad @ c.T)
+    for k in range(2):
+        own = labels == k
+        centre = (vol[own] @ c[own]) / vol[own].sum()
+        want = np.tile((grad @ centre)[:, None], (1, own.sum()))
+        np.testing.assert_allclose(out[:, own], want, rtol=0, atol=ROUND * np.abs(grad).sum())
+    # undistorted: the halves [0, 0.5] x [0, 1]^2 and [0.5, 1] x [0, 1]^2
+    if not distortion:
+        left = labels[np.argmin(c[:, 0])]
+        np.testing.assert_allclose(
+            out[:, labels == left][:, 0], grad @ [0.25, 0.5, 0.5], rtol=0, atol=1e-13 * 50
+        )
+
+
+def test_nodal_length_to_applications(box):
+    h = mean_edge_length(box.points, box.tets)
+    one = smoothing_operator(box.points, box.tets, rings=1, method="nodal")
+    two = smoothing_operator(box.points, box.tets, rings=2, method="nodal")
+    for length, want in [(0.1 * h, one), (0.99 * h, one), (1.5 * h, two)]:
+        s = smoothing_operator(box.points, box.tets, length=length, method="nodal")
+        np.testing.assert_allclose(s.toarray(), want.toarray(), rtol=0, atol=1e-15)
+
+
+def test_mean_edge_length(box):
+    edges = {
+        tuple(sorted((t[i], t[j]))) for t in box.tets.tolist() for i, j in combinations(range(4), 2)
+    }
+    want = np.mean([np.linalg.norm(box.points[a] - box.points[b]) for a, b in edges])
+    assert mean_edge_length(box.points, box.tets) == pytest.approx(want, rel=1e-14)
+
+
+@pytest.mark.parametrize(
+    "kw",
+    [
+        {},
+        {"length": 1.0, "rings": 1},
+        {"length": 0.0},
+        {"length": -1.0},
+        {"rings": -1},
+        {"rings": 1.5},
+        {"rings": 1, "method": "gauss"},
+    ],
+)
+def test_bad_arguments(box, kw):
+    with pytest.raises(ValueError):
+        smoothing_operator(box.points, box.tets, **kw)
+
+
+# --------------------------------------------------------------------------- principal
+
+
+def _random_symmetric(rng, m):
+    a = rng.normal(size=(3, 3, m))
+    return 0.5 * (a + a.transpose(1, 0, 2))
+
+
+def test_principal_stress_random():
+    rng = np.random.default_rng(0)
+    a = _random_symmetric(rng, 200)
+    s1, d = principal_stress(mandel_from_matrix(a))
+    mats = np.moveaxis(a, -1, 0)
+    # eigh vs eigvalsh on O(1) matrices: both backward stable, agree to a few ulps
+    np.testing.assert_allclose(s1, np.linalg.eigvalsh(mats)[:, -1], rtol=0, atol=1e-13)
+    np.testing.assert_allclose(np.linalg.norm(d, axis=1), 1.0, rtol=0, atol=1e-14)
+    residual = np.einsum("mij,mj->mi", mats, d) - s1[:, None] * d
+    assert np.abs(residual).max() < 1e-13
+
+
+def test_principal_stress_rotated_uniaxial():
+    """sigma = 5 n n^T - 1 (I - n n^T) in a random frame: sigma1 = 5 along n. The gap 6
+    between the eigenvalues makes the direction well conditioned (error ~ eps |A| / gap)."""
+    rng = np.random.default_rng(7)
+    q, _ = np.linalg.qr(rng.normal(size=(3, 3)))
+    n = q[:, 0]
+    a = 5.0 * np.outer(n, n) - (np.eye(3) - np.outer(n, n))
+    s1, d = principal_stress(mandel_from_matrix(a[:, :, None]))
+    np.testing.assert_allclose(s1, [5.0], rtol=0, atol=1e-12)
+    k = np.argmax(np.abs(n))
+    n_oriented = n * np.sign(n[k])
+    np.testing.assert_allclose(d[0], n_oriented, rtol=0, atol=1e-12)
+
+
+def test_principal_direction_orientation():
+    rng = np.random.default_rng(11)
+    a = _random_symmetric(rng, 100)
+    m = mandel_from_matrix(a)
+    s1, d = principal_stress(m)
+    big = np.take_along_axis(d, np.argmax(np.abs(d), axis=1)[:, None], axis=1)
+    assert np.all(big > 0)
+    s1b, db = principal_stress(m.copy())
+    np.testing.assert_array_equal(s1, s1b)
+    np.testing.assert_array_equal(d, db)
+    # scaling by a positive factor keeps the oriented direction (eigenvector round-off
+    # ~ eps |A| / gap; the random gaps here are >> 1e-5, so 1e-10 is generous)
+    _, dc = principal_stress(3.0 * m)
+    np.testing.assert_allclose(dc, d, rtol=0, atol=1e-10)
+    # a single (6,) tensor is accepted too; same LAPACK routine, agreement to round-off
+    s0, d0 = principal_stress(m[:, 0])
+    assert np.shape(s0) == () and d0.shape == (3,)
+    np.testing.assert_allclose(d0, d[0], rtol=0, atol=1e-14)
