@@ -358,7 +358,10 @@ class ImplicitStepper:
                     # the last correction moved nothing beyond round-off, so no iteration
                     # can reduce the residual: it is round-off too, left relative to forces
                     # that are themselves round-off (a body cut free under prescribed
-                    # displacements carries nothing: f_ext = f_int = 0)
+                    # displacements carries nothing: f_ext = f_int = 0); reported against
+                    # the force of the prescribed motion on the free dofs
+                    prescribed = _norm((self.fixed_columns @ u[fixed])[free])
+                    relative = _norm(residual[free]) / max(scale, prescribed)
                     break
                 if iterations >= self.equilibrium.max_iterations:
                     raise NotConverged(

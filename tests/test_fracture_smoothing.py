@@ -314,3 +314,20 @@ def test_principal_direction_orientation():
     s0, d0 = principal_stress(m[:, 0])
     assert np.shape(s0) == () and d0.shape == (3,)
     np.testing.assert_allclose(d0, d[0], rtol=0, atol=1e-14)
+
+
+@pytest.mark.parametrize("size", [{"length": 0.45}, {"rings": 2}])
+def test_update_after_a_crack_equals_a_rebuild(size):
+    """The operator updated near the split vertices is the one built afresh on the cracked
+    mesh, entry for entry (rows far from the crack cannot see it)."""
+    from fem_frac.fracture.smoothing import update_operator
+
+    mesh = structured_box((6, 3, 3), lengths=(2.0, 1.0, 1.0), distortion=0.1, seed=2)
+    before = smoothing_operator(mesh.points, mesh.tets, **size)
+    pick = np.flatnonzero(np.abs(mesh.points[:, 0] - 1.0) < 0.2)[:3]
+    new, _ = open_crack(mesh, pick, np.tile([1.0, 0.2, 0.0], (len(pick), 1)))
+    assert new.n_points > mesh.n_points
+    fresh = smoothing_operator(new.points, new.tets, **size)
+    updated = update_operator(before, new.points, new.tets, mesh.points[pick], **size)
+    assert (fresh != before).nnz > 0  # the crack did change some neighbourhoods
+    np.testing.assert_allclose(updated.toarray(), fresh.toarray(), rtol=0, atol=1e-15)

@@ -21,11 +21,6 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.sparse as sp
 
-# Candidates examined per batch, as a multiple of the batch size: bounds the (Python) scan
-# over candidates whose vertices cannot split.
-SCAN_FACTOR = 16
-
-
 @dataclass(frozen=True, eq=False)
 class Sites:
     """A batch of crack sites: ``elements (k,)`` over strength, the ``vertices (k,)`` to split
@@ -39,6 +34,10 @@ class Sites:
 
     def __len__(self) -> int:
         return int(self.vertices.shape[0])
+
+    def subset(self, keep: np.ndarray) -> Sites:
+        return Sites(self.elements[keep], self.vertices[keep], self.normals[keep],
+                     self.stress[keep])
 
 
 def vertex_tets(tets: np.ndarray, n_points: int) -> sp.csr_matrix:
@@ -113,6 +112,21 @@ def tilt(normals: np.ndarray, angle: float, rng: np.random.Generator) -> np.ndar
                                               + np.sin(phi)[:, None] * e2)
 
 
+def two_sided(points: np.ndarray, centroids: np.ndarray, incidence: sp.csr_matrix,
+              vertices: np.ndarray, normals: np.ndarray) -> np.ndarray:
+    """Vectorized first test of :func:`splits` for pairs ``vertices (k,)``, ``normals
+    (k, 3)``: whether the plane leaves tets of the vertex on both sides, ``(k,)`` bool."""
+    start, stop = incidence.indptr[vertices], incidence.indptr[vertices + 1]
+    degree = stop - start
+    pair = np.repeat(np.arange(vertices.size), degree)
+    offset = np.arange(pair.size) - np.repeat(np.cumsum(degree) - degree, degree)
+    tets = incidence.indices[np.repeat(start, degree) + offset]
+    minus = np.einsum("ij,ij->i", centroids[tets] - points[vertices[pair]],
+                      normals[pair]) < 0.0
+    n_minus = np.bincount(pair, weights=minus, minlength=vertices.size)
+    return (n_minus > 0) & (n_minus < degree)
+
+
 def select_sites(points: np.ndarray, tets: np.ndarray, sigma1: np.ndarray,
                  direction: np.ndarray, strength: float, neighbourhood: sp.csr_matrix,
                  on_crack: np.ndarray, protected: np.ndarray, limit: int,
@@ -125,28 +139,35 @@ def select_sites(points: np.ndarray, tets: np.ndarray, sigma1: np.ndarray,
     ``lookups`` the :func:`star` of the mesh (made here when not given).
     """
     tets = np.asarray(tets, dtype=np.int64)
-    free_vertex = ~protected[tets]  # (m, 4)
-    candidates = np.flatnonzero((sigma1 > strength) & free_vertex.any(axis=1))
     empty = Sites(np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros((0, 3)), np.zeros(0))
+    candidates = np.flatnonzero(sigma1 > strength)
     if candidates.size == 0 or limit <= 0:
         return empty
-    candidates = candidates[np.lexsort((candidates, -sigma1[candidates]))]
-    candidates = candidates[: SCAN_FACTOR * limit]
-    centroids = points[tets].mean(axis=1)
     lookups = lookups if lookups is not None else star(tets, points.shape[0])
+    centroids = points[tets].mean(axis=1)
+    # every (candidate, corner) pair whose plane cuts the vertex's tets in two, vectorized;
+    # the rest of the rules run in the (short) loop below
+    corners = tets[candidates]  # (k, 4)
+    normals = direction[candidates]
+    cut = two_sided(points, centroids, lookups.incidence, corners.ravel(),
+                    np.repeat(normals, 4, axis=0)).reshape(-1, 4) & ~protected[corners]
+    keep = cut.any(axis=1)
+    candidates, corners, cut = candidates[keep], corners[keep], cut[keep]
+    order = np.lexsort((candidates, -sigma1[candidates]))
     pattern = neighbourhood.tocsr()
     claimed = np.zeros(tets.shape[0], dtype=bool)
     used = np.zeros(points.shape[0], dtype=bool)
     chosen: list[tuple[int, int]] = []
-    for e in candidates.tolist():
+    for i in order.tolist():
+        e = int(candidates[i])
         if claimed[e]:
             continue
         n = direction[e]
-        corners = tets[e]
-        distance = np.abs((points[corners] - centroids[e]) @ n)
-        preference = np.lexsort((corners, distance, ~on_crack[corners]))
-        for v in corners[preference].tolist():
-            if protected[v] or used[v] or not splits(points, tets, centroids, lookups, v, n):
+        distance = np.abs((points[corners[i]] - centroids[e]) @ n)
+        preference = np.lexsort((corners[i], distance, ~on_crack[corners[i]]))
+        for j in preference.tolist():
+            v = int(corners[i, j])
+            if not cut[i, j] or used[v] or not splits(points, tets, centroids, lookups, v, n):
                 continue
             chosen.append((e, v))
             used[v] = True

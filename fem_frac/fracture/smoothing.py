@@ -83,28 +83,100 @@ def _divide_rows(w: sp.csr_matrix) -> None:
     w.data /= np.bincount(row, weights=w.data, minlength=w.shape[0])[row]
 
 
-def _length_neighbourhoods(step: sp.csr_matrix, c: np.ndarray, length: float) -> sp.csr_matrix:
+def _length_neighbourhoods(step: sp.csr_matrix, c: np.ndarray, length: float,
+                           rows: np.ndarray | None = None) -> sp.csr_matrix:
     """Pattern of pairs ``(i, j)`` joined by a path of ``step`` (which holds the diagonal)
-    whose every element has its centroid within ``length`` of ``c[i]``.
+    whose every element has its centroid within ``length`` of ``c[i]``; only the rows
+    ``rows`` (all when ``None``), as a ``(len(rows), m)`` matrix.
 
     Grown ring by ring: extend the pairs added last ring by one step, keep the candidates
     not held yet and within ``length``, stop when a ring adds nothing. Cost grows with the
     number of pairs (about the number of tets in a ball of radius ``length`` per row).
     """
     m = c.shape[0]
-    reach = sp.identity(m, dtype=float, format="csr")
+    rows = np.arange(m) if rows is None else np.asarray(rows, dtype=np.int64)
+    k = rows.size
+    reach = sp.csr_matrix((np.ones(k), (np.arange(k), rows)), shape=(k, m))
     front = reach
     while front.nnz:
         cand = _pattern(front @ step)
         cand = (cand - cand.multiply(reach)).tocsr()
         cand.eliminate_zeros()
         cand = cand.tocoo()
-        near = np.linalg.norm(c[cand.row] - c[cand.col], axis=1) <= length
+        near = np.linalg.norm(c[rows[cand.row]] - c[cand.col], axis=1) <= length
         front = sp.csr_matrix(
-            (np.ones(np.count_nonzero(near)), (cand.row[near], cand.col[near])), shape=(m, m)
+            (np.ones(np.count_nonzero(near)), (cand.row[near], cand.col[near])), shape=(k, m)
         )
         reach = sp.csr_matrix(reach + front)
     return reach
+
+
+def _ring_neighbourhoods(step: sp.csr_matrix, rings: int, rows: np.ndarray) -> sp.csr_matrix:
+    """Pattern ``(len(rows), m)`` of the tets within ``rings`` steps of each of ``rows``."""
+    m = step.shape[0]
+    k = rows.size
+    reach = sp.csr_matrix((np.ones(k), (np.arange(k), rows)), shape=(k, m))
+    for _ in range(int(rings)):
+        reach = _pattern(reach @ step)
+    return reach
+
+
+def update_operator(operator: sp.csr_matrix, points: np.ndarray, tets: np.ndarray,
+                    split: np.ndarray, *, length: float | None = None,
+                    rings: int | None = None, method: str = "neighbours") -> sp.csr_matrix:
+    """The operator of a mesh just cracked, from the ``operator`` of the mesh before.
+
+    ``points``, ``tets``: the new mesh (same tets, element ids unchanged); ``split``: the
+    reference positions ``(k, 3)`` of the vertices split. Cracks open only along faces at
+    those vertices, so for ``neighbours`` only the rows whose neighbourhood can reach such
+    a face change: elements whose centroid lies within ``length`` plus the largest tet
+    diameter of a split vertex (``length``), or within ``rings + 1`` face-steps of a tet at
+    one (``rings``). Those rows are rebuilt, the others kept; the result equals
+    :func:`smoothing_operator` on the new mesh. ``nodal`` is rebuilt whole.
+    """
+    if method != "neighbours":
+        return smoothing_operator(points, tets, length=length, rings=rings, method=method)
+    from scipy.spatial import cKDTree
+
+    points = np.asarray(points, dtype=float)
+    tets = np.asarray(tets, dtype=np.int64)
+    m = tets.shape[0]
+    c = centroids(points, tets)
+    step = _pattern(face_adjacency(tets) + sp.identity(m, format="csr"))
+    x = points[tets]
+    diameters = np.max(np.linalg.norm(x[:, TET_EDGES[:, 0]] - x[:, TET_EDGES[:, 1]], axis=2),
+                       axis=1)
+    split = np.asarray(split, dtype=float).reshape(-1, 3)
+    # a face opened at a split vertex v lies between tets holding v or a copy of it (same
+    # position), whose centroids are within their diameter of v: the largest diameter of
+    # the tets at v bounds how far from v a neighbourhood can meet the new faces
+    tol = 1e-12 * float(np.ptp(points, axis=0).max())
+    copies = cKDTree(points).query_ball_point(split, tol)
+    diameter = np.array([diameters[np.isin(tets, ids).any(axis=1)].max() for ids in copies])
+    if length is not None:
+        hit = cKDTree(c).query_ball_point(split, float(length) + diameter)
+        rows = np.unique(np.concatenate([np.asarray(h, dtype=np.int64) for h in hit]
+                                        + [np.zeros(0, np.int64)]))
+        fresh = _length_neighbourhoods(step, c, float(length), rows)
+    else:
+        near = np.zeros(m)
+        hit = cKDTree(c).query_ball_point(split, diameter)
+        near[np.concatenate([np.asarray(h, dtype=np.int64) for h in hit]
+                            + [np.zeros(0, np.int64)])] = 1.0
+        for _ in range(int(rings) + 1):
+            near = step @ near
+        rows = np.flatnonzero(near)
+        fresh = _ring_neighbourhoods(step, int(rings), rows)
+    volumes = np.abs(tet_volumes(points, tets))
+    fresh = _volume_weighted(fresh, volumes)
+    keep = np.ones(m, dtype=bool)
+    keep[rows] = False
+    kept = sp.diags(keep.astype(float)) @ operator
+    placed = sp.csr_matrix((np.ones(rows.size), (rows, np.arange(rows.size))),
+                           shape=(m, rows.size)) @ fresh
+    out = sp.csr_matrix(kept + placed)
+    out.sort_indices()
+    return out
 
 
 def _vertex_projection(points, tets, volumes) -> tuple[sp.csr_matrix, sp.csr_matrix]:

@@ -22,16 +22,17 @@ from collections.abc import Callable
 from dataclasses import dataclass, replace
 
 import numpy as np
+from scipy.sparse.csgraph import connected_components
 
 from ..config import schema
 from ..errors import CaseError, SolverError
-from ..mesh.mesh import Mesh
+from ..mesh.mesh import Mesh, tet_volumes
 from ..problem import free_rigid_modes
 from ..stepping import Ledger, State, StepInfo, System, advance
 from ..writers.fields import cell_average
 from .remap import dof_transfer, node_transfer, transfer_plastic
 from .sites import select_sites, star, tilt
-from .smoothing import principal_stress, smooth, smoothing_operator
+from .smoothing import principal_stress, smooth, smoothing_operator, update_operator
 from .summary import crack_measures
 from .topology import CRACK, Transfer, fragments, open_crack
 
@@ -49,6 +50,7 @@ class Batch:
     new_vertices: int
     max_stress: float
     seconds: float
+    where: np.ndarray  # (sites, 3) reference position of each split vertex
 
 
 def protected_vertices(config: schema.Fracture, mesh: Mesh) -> np.ndarray:
@@ -100,12 +102,24 @@ class FractureStage:
         self.rebuild_seconds = 0.0
         self._prepare(current.model.mesh)
 
-    def _prepare(self, mesh: Mesh) -> None:
-        """Per-topology caches: smoothing operator, protected vertices, fragments."""
-        self.smoothing = smoothing_of(self.config, mesh)
+    def _prepare(self, mesh: Mesh, split: np.ndarray | None = None) -> None:
+        """Per-topology caches: smoothing operator (updated near the ``split`` vertex
+        positions when given), protected vertices, fragments."""
+        if split is None:
+            self.smoothing = smoothing_of(self.config, mesh)
+        else:
+            s = self.config.smoothing
+            self.smoothing = update_operator(self.smoothing, mesh.points, mesh.tets, split,
+                                             length=s.length, rings=s.rings, method=s.method)
         self.protected = protected_vertices(self.config, mesh)
-        self.n_fragments, self.labels = fragments(mesh.tets)
         self.star = star(mesh.tets, mesh.n_points)
+        n, labels = connected_components(self.star.adjacency, directed=False)
+        self.n_fragments, self.labels = int(n), labels.astype(np.int64)
+        self.volumes = tet_volumes(mesh.points, mesh.tets)
+        # debris: a new piece smaller than the median smoothing neighbourhood
+        pattern = self.smoothing.copy()
+        pattern.data[:] = 1.0
+        self.debris_volume = float(np.median(pattern @ self.volumes))
         self.crack = crack_measures(mesh)
 
     # -- the hook --------------------------------------------------------------------------
@@ -116,18 +130,21 @@ class FractureStage:
         regular = ledger  # the step on the uncracked mesh
         changed = False
         inserted = passes = 0
+        refused = np.zeros(self.current.model.mesh.n_points, dtype=bool)
         while passes < cfg.passes and inserted < cfg.max_insertions_per_step:
             limit = min(cfg.batch_size, cfg.max_insertions_per_step - inserted)
             t0 = time.perf_counter()
-            sites = self.sites(end, n, passes, limit)
+            sites = self.sites(end, n, passes, limit, refused)
             if len(sites) == 0:
                 break
             old = self.current
-            mesh, transfer = open_crack(old.model.mesh, sites.vertices, sites.normals)
-            if transfer.n_new_points == old.model.mesh.n_points:
-                break
+            sites, mesh, transfer, dropped = self.open(old.model.mesh, sites)
+            refused[dropped] = True  # for the rest of this step: choose other sites
+            if mesh is None:
+                continue
             new = self.build(mesh)
-            self._prepare(mesh)
+            self._prepare(mesh, old.model.mesh.points[sites.vertices])
+            refused = transfer.transfer_nodal(refused)
             if not self.inertia:
                 self._check_supports(new, n)
             start = self.carry(start, old, new, transfer)  # the next pass starts from it
@@ -141,7 +158,8 @@ class FractureStage:
                            factorizations=info.factorizations + step_info.factorizations,
                            cutbacks=info.cutbacks + step_info.cutbacks)
             batch = Batch(n, len(sites), transfer.n_new_points - old.model.mesh.n_points,
-                          float(sites.stress.max()), time.perf_counter() - t0)
+                          float(sites.stress.max()), time.perf_counter() - t0,
+                          old.model.mesh.points[sites.vertices])
             self.batches.append(batch)
             inserted += len(sites)
             passes += 1
@@ -159,12 +177,37 @@ class FractureStage:
 
     # -- parts -----------------------------------------------------------------------------
 
+    def open(self, mesh: Mesh, sites):
+        """Open ``sites`` on ``mesh``: ``(sites kept, new mesh, transfer, dropped vertices)``,
+        the mesh ``None`` when nothing opens. Sites that would shed debris (a new piece
+        smaller than one smoothing neighbourhood, whose stress the smoothing cannot even
+        resolve) are dropped and the rest opened again from ``mesh``."""
+        dropped = []
+        while len(sites):
+            new, transfer = open_crack(mesh, sites.vertices, sites.normals)
+            if transfer.n_new_points == mesh.n_points:
+                dropped.extend(sites.vertices.tolist())
+                break
+            count, labels = fragments(new.tets)
+            volume = np.bincount(labels, weights=self.volumes, minlength=count)
+            debris = np.flatnonzero(volume < self.debris_volume)
+            if count == self.n_fragments or debris.size == 0:
+                return sites, new, transfer, np.array(dropped, dtype=np.int64)
+            touched = transfer.node_map[new.tets[np.isin(labels, debris)]].ravel()
+            bad = np.isin(sites.vertices, touched)
+            if not bad.any():  # not caused by a split of this batch: nothing to drop
+                return sites, new, transfer, np.array(dropped, dtype=np.int64)
+            dropped.extend(sites.vertices[bad].tolist())
+            sites = sites.subset(~bad)
+        return sites, None, None, np.array(dropped, dtype=np.int64)
+
     def principal(self, state: State) -> tuple[np.ndarray, np.ndarray]:
         """Smoothed largest principal stress ``(m,)`` and its direction ``(m, 3)``."""
         mean = cell_average(self.current.model.space, state.stress)
         return principal_stress(smooth(self.smoothing, mean))
 
-    def sites(self, state: State, n: int, batch: int, limit: int):
+    def sites(self, state: State, n: int, batch: int, limit: int,
+              refused: np.ndarray | None = None):
         mesh = self.current.model.mesh
         sigma1, direction = self.principal(state)
         p = self.config.perturbation
@@ -175,7 +218,8 @@ class FractureStage:
         on_crack[np.asarray(mesh.boundaries.get(CRACK, np.zeros((0, 3), int))).ravel()] = True
         return select_sites(mesh.points, mesh.tets, sigma1, direction,
                             self.config.tensile_strength, self.smoothing, on_crack,
-                            self.protected, limit, self.star)
+                            self.protected if refused is None else self.protected | refused,
+                            limit, self.star)
 
     def carry(self, state: State, old, new, transfer: Transfer) -> State:
         """``state`` of ``old`` onto ``new`` (module docstring)."""

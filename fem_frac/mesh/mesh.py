@@ -86,10 +86,12 @@ def exterior_facets(tets: np.ndarray) -> np.ndarray:
 
     Orientation assumes positively oriented tets (see :func:`tet_volumes`).
     """
+    tets = np.asarray(tets)
     faces = tets[:, TET_FACES].reshape(-1, 3)
-    _, inverse, counts = np.unique(
-        np.sort(faces, axis=1), axis=0, return_inverse=True, return_counts=True
-    )
+    n = int(tets.max()) + 1 if tets.size else 0
+    # integer keys sort far faster than np.unique(axis=0) on rows
+    _, inverse, counts = np.unique(facet_keys(faces, n), return_inverse=True,
+                                   return_counts=True)
     return faces[counts[inverse.ravel()] == 1]
 
 
