@@ -339,6 +339,7 @@ class ImplicitStepper:
             f_int = f_int + self.fixed_columns @ moved
         stress, plastic, tangent = old.stress, old.plastic, None
         iterations, relative = 0, np.inf
+        correction = np.zeros(len(free))
         accelerate = None
         if method == "modified_newton" and self.equilibrium.acceleration == "anderson":
             accelerate = Anderson(ANDERSON_DEPTH)

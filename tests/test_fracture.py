@@ -13,7 +13,6 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from solve import run_fracture
 
 from fem_frac.config.schema import Case
 from fem_frac.driver import fracture_stage, prepare
@@ -23,6 +22,7 @@ from fem_frac.mesh import exterior_facets, tet_volumes
 from fem_frac.mesh.mesh import TET_FACES, facet_keys
 from fem_frac.stepping import State
 from fem_frac.timing import StageTimer
+from solve import run_fracture
 
 ROOT = Path(__file__).parent.parent
 

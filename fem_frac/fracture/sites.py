@@ -21,6 +21,7 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.sparse as sp
 
+
 @dataclass(frozen=True, eq=False)
 class Sites:
     """A batch of crack sites: ``elements (k,)`` over strength, the ``vertices (k,)`` to split
