@@ -65,6 +65,8 @@ def check_report(case: Case, source: Source) -> str:
             lines.append(f"  [{i}] {where}: {count:,} tets; {values}")
     lines.append("supports and loads")
     lines += [f"  {d}" for d in model.problem.descriptions] or ["  (none)"]
+    if case.fracture is not None:
+        lines += _fracture_lines(case, model)
     if isinstance(case.analysis, DynamicAnalysis):
         lines += _time_step_lines(case, model)
     lines.append("plan")
@@ -125,3 +127,21 @@ def resolved_yaml(case: Case, source: Source) -> str:
     header = [f"# resolved by fem-frac {__version__} from {source.path}"]
     header += [f"# --set {text}" for text in source.overrides.values()]
     return "\n".join(header) + "\n" + buffer.getvalue()
+
+
+def _fracture_lines(case: Case, model) -> list[str]:
+    """The protected vertices (names and boxes checked here) and the smoothing size."""
+    from .fracture.smoothing import mean_edge_length
+    from .fracture.stage import protected_vertices
+
+    mesh, f = model.mesh, case.fracture
+    protected = protected_vertices(f, mesh)
+    edge = mean_edge_length(mesh.points, mesh.tets)
+    s = f.smoothing
+    size = (f"length {s.length:g} = {s.length / edge:.2f} mean edge lengths"
+            if s.length is not None else f"{s.rings} ring(s) of neighbours")
+    return ["fracture",
+            f"  tensile strength {f.tensile_strength:g}; smoothing {s.method}, {size} "
+            f"(mean edge {edge:.4g})",
+            f"  {np.count_nonzero(protected):,} of {mesh.n_points:,} vertices protected"]
+

@@ -36,3 +36,14 @@ def run_fracture(case_dict: dict, case_dir: Path = Path("."), observe=None):
     state, ledger, counters = simulate(setup, timer, observe or (lambda *a: None),
                                        fracture=stage)
     return setup, stage, state, ledger, counters
+
+
+def write_case(path: Path, case_dict: dict) -> Path:
+    """Write ``case_dict`` as a YAML case file (block style, one key per line)."""
+    from ruamel.yaml import YAML
+
+    yaml = YAML(typ="safe")
+    yaml.default_flow_style = False
+    with open(path, "w") as f:
+        yaml.dump(case_dict, f)
+    return path

@@ -22,7 +22,7 @@ from fem_frac.mesh import exterior_facets, tet_volumes
 from fem_frac.mesh.mesh import TET_FACES, facet_keys
 from fem_frac.stepping import State
 from fem_frac.timing import StageTimer
-from solve import run_fracture
+from solve import run_fracture, write_case
 
 ROOT = Path(__file__).parent.parent
 
@@ -183,3 +183,71 @@ def test_insertion_conserves_mass_and_momenta(order, mass):
     np.testing.assert_allclose(new.ops.strain_operator.strain(carried.u),
                                old.ops.strain_operator.strain(state.u), rtol=0,
                                atol=1e-12 * np.abs(state.stress).max() / E)
+
+
+def test_notched_beam_cracks_first_at_the_notch_root():
+    """Three-point bending: the tension peaks at the notch root (x = 0.1, z = 0.01), so the
+    first sites lie there, within one smoothing length plus one element (the sites are
+    vertices of elements whose smoothed stress is highest)."""
+    from ruamel.yaml import YAML
+
+    case = YAML(typ="safe").load((ROOT / "cases" / "notched_beam.yaml").read_text())
+    # the case's load path, stopped after the first crack (t = 0.65 at this mesh)
+    case["load_curves"] = {"load": {"type": "ramp", "t_end": 1.0}}
+    case["boundary_conditions"][2]["curve"] = "load"
+    case["analysis"] = {"type": "quasi_static", "t_end": 0.65, "dt": 0.05}
+    setup, stage, state, ledger, counters = run_fracture(case, ROOT / "cases")
+    assert stage.batches, "no crack at the notch"
+    first = stage.batches[0]
+    h = 0.0026  # measured mean tet edge at the notch root (meshes/notched_beam.geo)
+    reach = case["fracture"]["smoothing"]["length"] + h
+    assert np.all(np.abs(first.where[:, 0] - 0.1) < reach)
+    assert np.all(np.abs(first.where[:, 2] - 0.01) < reach)
+    check_topology(stage.current.model.mesh)
+    # the crack faces all sit in the band above the notch, none elsewhere
+    c = stage.current.model.mesh.points[stage.current.model.mesh.boundaries[CRACK]]
+    c = c.mean(axis=1)
+    assert np.all(np.abs(c[:, 0] - 0.1) < 2 * reach) and np.all(c[:, 2] > 0.01 - reach)
+
+
+def test_a_loose_piece_stops_a_static_run_with_a_clear_message(tmp_path, capsys):
+    """Under a traction the far end of a broken bar has no support: a quasi-static solve
+    is singular. The run stops at the step, names the stage and why (exit 3), and keeps
+    the output written so far."""
+    from fem_frac.cli import main
+    from fem_frac.writers.history import read_history
+
+    case = bar(steps=4)
+    case["boundary_conditions"][3] = {"type": "traction", "boundary": "xmax",
+                                      "traction": [3.5e6, 0, 0]}
+    path = write_case(tmp_path / "loose.yaml", case)
+    out = tmp_path / "out"
+    assert main(["run", str(path), "-o", str(out), "-q"]) == 3
+    err = capsys.readouterr().err
+    assert "stage fracture" in err and "no support holds" in err and "step 4" in err
+    assert "Traceback" not in err
+    history = read_history(out / "history.csv")
+    assert history["step"] == [0, 1, 2, 3]
+    assert (out / "loose.pvd").is_file()
+
+
+@pytest.mark.parametrize("section,key,message", [
+    ({"tensile_strength": 1e6, "smoothing": {"length": 0.01, "rings": 1}},
+     "fracture.smoothing", "exactly one of 'length' or 'rings'"),
+    ({"tensile_strength": -1.0, "smoothing": {"rings": 1}},
+     "fracture.tensile_strength", "must be > 0"),
+    ({"tensile_strength": 1e6, "smoothing": {"rings": 1}, "protect": [{"boundary": "nope"}]},
+     "fracture.protect[0].boundary", "no boundary 'nope'"),
+    ({"tensile_strength": 1e6, "smoothing": {"rings": 1}, "passes": 0},
+     "fracture.passes", "must be >= 1"),
+])
+def test_bad_fracture_sections_are_located(tmp_path, capsys, section, key, message):
+    from fem_frac.cli import main
+
+    case = bar()
+    case["fracture"] = section
+    path = write_case(tmp_path / "bad.yaml", case)
+    assert main(["check", str(path)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.startswith(f"error: {path}:") and key in err and message in err
+    assert len(err.splitlines()) == 1

@@ -1,0 +1,259 @@
+"""One crack-insertion batch against one plain step and its floor (DESIGN §3, §7).
+
+RESULTS
+
+The floor of a step is one back-solve with the cached elastic factorization plus one pass over
+the quadrature points (strain ``B u``, ``law.update``, internal force ``B^T sigma dx``), each
+timed alone. Against it, on the same state, this times a plain elastic step
+(``ImplicitStepper.step``) and every piece of one batch of the fracture stage, in the order
+``FractureStage.__call__`` runs them: selection (``stage.sites``: cell average, smoothing,
+eigen-decomposition, site choice), ``stage.open`` (``open_crack`` and the debris check), the
+rebuild (``stage.build``: space, loads, operators, stepper), ``stage._prepare`` (smoothing
+update ``update_operator`` and the other per-topology caches), the support check, the state
+carried over (``stage.carry``), the refactorization (the new stepper's first
+``elastic_factor()``) and the re-solve step. Each piece is the best of ``--repeats`` calls,
+each from cold caches (a 64 MiB buffer written first, as in plastic_step.py); the whole batch
+is also timed end to end through ``stage(...)``: cold (the first batch of the process, the
+first thing after the setup, as in a run) and warm (best of the repeats after the pieces).
+
+The scene: the brittle bar of tests/test_fracture.py (E = 30 GPa, nu = 0.2, strength 3 MPa),
+0.1 x 0.02 x 0.02, symmetry on xmin/ymin/zmin, displacement on xmax, quasi-static in 2 steps
+to 1.02 times the strength (the stress is uniform: every element is over strength, the
+selection's worst case), meshed by gmsh with the element size h that gives ~N tets. The
+smoothing length is 1.5 h (tied to the mesh, so a neighbourhood holds about the same number of
+tets, ~60, at every size); ``batch_size`` 8, one pass, xmin and xmax protected. The batch is
+taken after step 2 from the committed state of step 1 (``stage.carry``) to the end of step 2.
+Each size runs in a fresh subprocess.
+
+    python benchmarks/fracture.py                       # 10k and 100k tets
+    python benchmarks/fracture.py --sizes 10000 --repeats 5
+"""
+
+from __future__ import annotations
+
+import argparse
+import gc
+import json
+import resource
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+LENGTHS = (0.1, 0.02, 0.02)
+TETS_PER_H3 = 4.5  # gmsh box: n_tets ~ TETS_PER_H3 * volume / h^3
+E, NU, STRENGTH = 30e9, 0.2, 3e6
+OVER = 1.02  # end load / strength
+FLUSH = np.zeros(0)
+
+
+def case_dict(n_tets: int) -> dict:
+    h = (TETS_PER_H3 * np.prod(LENGTHS) / n_tets) ** (1 / 3)
+    return {
+        "mesh": {"geometry": {"type": "box", "lengths": list(LENGTHS)}, "element_size": h},
+        "material": {"youngs_modulus": E, "poissons_ratio": NU, "density": 2400},
+        "boundary_conditions": [
+            {"type": "symmetry", "boundary": "xmin"},
+            {"type": "symmetry", "boundary": "ymin"},
+            {"type": "symmetry", "boundary": "zmin"},
+            {"type": "displacement", "boundary": "xmax", "x": OVER * STRENGTH * LENGTHS[0] / E},
+        ],
+        "fracture": {"tensile_strength": STRENGTH, "smoothing": {"length": 1.5 * h},
+                     "batch_size": 8, "passes": 1, "max_insertions_per_step": 8,
+                     "protect": [{"boundary": "xmin"}, {"boundary": "xmax"}]},
+        "analysis": {"type": "quasi_static", "steps": 2},
+    }
+
+
+def best(fn, repeats: int):
+    """``(best wall seconds, last result)`` of ``repeats`` calls, each from cold caches."""
+    global FLUSH
+    if FLUSH.size == 0:
+        FLUSH = np.zeros(64 * 2**20 // 8)
+    times, out = [], None
+    for _ in range(repeats):
+        FLUSH += 1.0
+        gc.collect()
+        gc.disable()
+        t0 = time.perf_counter()
+        out = fn()
+        times.append(time.perf_counter() - t0)
+        gc.enable()
+    return min(times), out
+
+
+def one(n_tets: int, repeats: int) -> dict:
+    from fem_frac.config.schema import Case
+    from fem_frac.driver import fracture_stage, prepare
+    from fem_frac.fracture.smoothing import principal_stress, smooth, update_operator
+    from fem_frac.fracture.stage import smoothing_of
+    from fem_frac.fracture.topology import open_crack
+    from fem_frac.stepping import advance, initial_ledger, initial_state
+    from fem_frac.timing import StageTimer
+    from fem_frac.writers.fields import cell_average
+
+    setup = prepare(Case.model_validate(case_dict(n_tets)), Path("."), StageTimer())
+    law, ops, st, problem = setup.law, setup.ops, setup.stepper, setup.model.problem
+    mesh, free = setup.model.mesh, setup.constrained.free
+    r: dict = {"tets": mesh.n_tets, "dofs": setup.model.space.n_dofs, "free": len(free)}
+    r["factorize"], factor = best(st.elastic_factor, 1)
+    s0 = initial_state(problem, law, ops, None, setup.constrained, "auto")
+    s1, led1, _ = advance(st, s0, 0.0, 0.5, initial_ledger(s0, law, ops), problem, law, ops, 1)
+    s2, led2, info = advance(st, s1, 0.5, 1.0, led1, problem, law, ops, 2)
+    bt = StageTimer()
+    stage = fracture_stage(setup, bt)
+    saved = dict(vars(stage))
+
+    def whole():
+        vars(stage).update(saved)
+        stage.batches = []
+        return stage(2, s1, led1, s2, led2, info)
+
+    r["batch cold"], _ = best(whole, 1)
+    vars(stage).update(saved)
+    r["smoothing operator"], _ = best(lambda: smoothing_of(stage.config, mesh), repeats)
+    r["nnz/row"] = stage.smoothing.nnz / mesh.n_tets
+
+    # floor and plain step on the uncracked mesh
+    rhs = np.random.default_rng(0).standard_normal(len(free))
+    op = ops.strain_operator
+    r["back-solve"], _ = best(lambda: factor.solve(rhs), repeats)
+    r["strain"], strain = best(lambda: op.strain(s2.u), repeats)
+    r["law.update"], _ = best(lambda: law.update(strain, s1.plastic), repeats)
+    r["internal force"], _ = best(lambda: op.internal_force(s2.stress), repeats)
+    r["floor"] = r["back-solve"] + r["strain"] + r["law.update"] + r["internal force"]
+    r["step"], (_, step_info) = best(lambda: st.step(s1, 1.0, 2), repeats)
+    r["step iterations"] = step_info.iterations
+
+    # the batch, piece by piece, in the order of FractureStage.__call__
+    refused = np.zeros(mesh.n_points, dtype=bool)
+    space = setup.model.space
+    p = {}
+    p["selection"], sites = best(lambda: stage.sites(s2, 2, 0, 8, refused), repeats)
+    p["  cell average"], mean = best(lambda: cell_average(space, s2.stress), repeats)
+    p["  smoothing S @ sigma"], smoothed = best(lambda: smooth(stage.smoothing, mean), repeats)
+    p["  eigen-decomposition"], _ = best(lambda: principal_stress(smoothed), repeats)
+    p["  site choice"] = p["selection"] - sum(p[k] for k in list(p)[1:])
+    p["open (stage.open)"], (sites, new_mesh, transfer, _) = best(
+        lambda: stage.open(mesh, sites), repeats)
+    p["  open_crack"], _ = best(lambda: open_crack(mesh, sites.vertices, sites.normals),
+                                repeats)
+    p["  debris check"] = p["open (stage.open)"] - p["  open_crack"]
+    r["sites"], r["new vertices"] = len(sites), new_mesh.n_points - mesh.n_points
+    builds = []
+
+    def build():
+        bt.seconds.clear()
+        out = stage.build(new_mesh)
+        builds.append(dict(bt.seconds))
+        return out
+
+    p["rebuild (stage.build)"], new = best(build, repeats)
+    parts = min(builds, key=lambda b: b["fracture rebuild"])
+    for key, label in (("space", "space"), ("loads", "loads"), ("assemble", "operators")):
+        p[f"  {label}"] = parts[key]
+    p["  constrained, stepper"] = parts["fracture rebuild"] - sum(
+        parts[k] for k in ("space", "loads", "assemble"))
+    split = mesh.points[sites.vertices]
+    s = stage.config.smoothing
+
+    def prep():
+        vars(stage).update(saved)
+        stage._prepare(new_mesh, split)
+
+    p["caches (stage._prepare)"], _ = best(prep, repeats)
+    p["  update_operator"], _ = best(lambda: update_operator(
+        saved["smoothing"], new_mesh.points, new_mesh.tets, split, length=s.length,
+        rings=s.rings, method=s.method), repeats)
+    p["  other caches"] = p["caches (stage._prepare)"] - p["  update_operator"]
+    p["support check"], _ = best(lambda: stage._check_supports(new, 2), repeats)
+    p["carry (stage.carry)"], carried = best(
+        lambda: stage.carry(s1, saved["current"], new, transfer), repeats)
+
+    def refactor():
+        new.stepper.factor = None
+        return new.stepper.elastic_factor()
+
+    p["refactorization"], _ = best(refactor, repeats)
+    p["re-solve step"], (_, resolve_info) = best(lambda: new.stepper.step(carried, 1.0, 2),
+                                                 repeats)
+    r["re-solve iterations"] = resolve_info.iterations
+    r["batch (sum of pieces)"] = sum(v for k, v in p.items() if not k.startswith(" "))
+    r["batch warm"], _ = best(whole, repeats)
+    r["pieces"] = p
+    r["peak_mib"] = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
+    return r
+
+
+def _t(x: float) -> str:
+    return f"{1e3 * x:.1f} ms" if x < 1 else f"{x:.2f} s"
+
+
+def summary(rows: list[dict]) -> str:
+    head = ("| tets | dofs | S nnz/row | sites / new vertices | initial S | floor | step "
+            "| step/floor | batch cold | batch warm | warm/floor | warm/step | peak MiB |")
+    body = [
+        f"| {r['tets']:,} | {r['dofs']:,} | {r['nnz/row']:.0f} | {r['sites']} / "
+        f"{r['new vertices']} | {_t(r['smoothing operator'])} | {_t(r['floor'])} "
+        f"| {_t(r['step'])} | {r['step'] / r['floor']:.2f} | {_t(r['batch cold'])} "
+        f"| {_t(r['batch warm'])} | **{r['batch warm'] / r['floor']:.0f}** "
+        f"| **{r['batch warm'] / r['step']:.1f}** | {r['peak_mib']:,.0f} |" for r in rows]
+    return "\n".join([head, "|" + "---|" * 13, *body])
+
+
+def pieces(rows: list[dict]) -> str:
+    """Each piece: time, in floors, in plain steps."""
+    head = "| piece (time, /floor, /step) | " + " | ".join(f"{r['tets']:,}" for r in rows) + " |"
+    floor = [("back-solve", "back-solve"), ("  strain", "strain"),
+             ("  law.update", "law.update"), ("  internal force", "internal force")]
+    body = []
+    for label, key in floor:
+        body.append(f"| floor: {label.strip()} | "
+                    + " | ".join(f"{_t(r[key])}, {r[key] / r['floor']:.2f}" for r in rows) + " |")
+    for label in rows[0]["pieces"]:
+        cells = []
+        for r in rows:
+            x = r["pieces"][label]
+            cells.append(f"{_t(x)}, {x / r['floor']:.1f}, {x / r['step']:.2f}")
+        name = label.replace("  ", "- ") if label.startswith(" ") else f"**{label}**"
+        body.append(f"| {name} | " + " | ".join(cells) + " |")
+    for key in ("batch (sum of pieces)", "batch warm", "batch cold"):
+        body.append(f"| **{key}** | " + " | ".join(
+            f"{_t(r[key])}, {r[key] / r['floor']:.0f}, {r[key] / r['step']:.1f}"
+            for r in rows) + " |")
+    return "\n".join([head, "|" + "---|" * (len(rows) + 1), *body])
+
+
+def main() -> None:
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p.add_argument("--sizes", type=int, nargs="+", default=[10_000, 100_000])
+    p.add_argument("--repeats", type=int, default=3, help="best of (2 from 50k tets up)")
+    p.add_argument("--one", type=int, help=argparse.SUPPRESS)
+    p.add_argument("--json", help="also write the rows to this file")
+    args = p.parse_args()
+    if args.one:
+        print(json.dumps(one(args.one, args.repeats if args.one < 50_000 else
+                             min(args.repeats, 2))))
+        return
+    rows = []
+    for n in args.sizes:
+        t0 = time.perf_counter()
+        cmd = [sys.executable, __file__, "--one", str(n), "--repeats", str(args.repeats)]
+        done = subprocess.run(cmd, capture_output=True, text=True)
+        if done.returncode != 0:
+            print(f"{n} tets: failed\n{done.stderr[-3000:]}", file=sys.stderr)
+            continue
+        rows.append(json.loads(done.stdout.strip().splitlines()[-1]))
+        print(f"{n} tets: {time.perf_counter() - t0:.0f} s", file=sys.stderr, flush=True)
+    if args.json:
+        Path(args.json).write_text(json.dumps(rows, indent=1) + "\n")
+    if rows:
+        print(summary(rows))
+        print()
+        print(pieces(rows))
+
+
+if __name__ == "__main__":
+    main()
