@@ -97,8 +97,8 @@ def one(n_tets: int, repeats: int) -> dict:
     setup = prepare(Case.model_validate(case_dict(n_tets)), Path("."), StageTimer())
     law, ops, st, problem = setup.law, setup.ops, setup.stepper, setup.model.problem
     mesh, free = setup.model.mesh, setup.constrained.free
-    r: dict = {"tets": mesh.n_tets, "dofs": setup.model.space.n_dofs, "free": len(free)}
-    r["factorize"], factor = best(st.elastic_factor, 1)
+    r: dict = {"tets": mesh.n_tets, "dofs": setup.model.space.n_dofs}
+    factor = st.elastic_factor()
     s0 = initial_state(problem, law, ops, None, setup.constrained, "auto")
     s1, led1, _ = advance(st, s0, 0.0, 0.5, initial_ledger(s0, law, ops), problem, law, ops, 1)
     s2, led2, info = advance(st, s1, 0.5, 1.0, led1, problem, law, ops, 2)
@@ -125,7 +125,6 @@ def one(n_tets: int, repeats: int) -> dict:
     r["internal force"], _ = best(lambda: op.internal_force(s2.stress), repeats)
     r["floor"] = r["back-solve"] + r["strain"] + r["law.update"] + r["internal force"]
     r["step"], (_, step_info) = best(lambda: st.step(s1, 1.0, 2), repeats)
-    r["step iterations"] = step_info.iterations
 
     # the batch, piece by piece, in the order of FractureStage.__call__
     refused = np.zeros(mesh.n_points, dtype=bool)
@@ -179,7 +178,7 @@ def one(n_tets: int, repeats: int) -> dict:
     p["refactorization"], _ = best(refactor, repeats)
     p["re-solve step"], (_, resolve_info) = best(lambda: new.stepper.step(carried, 1.0, 2),
                                                  repeats)
-    r["re-solve iterations"] = resolve_info.iterations
+    r["iterations"] = f"{step_info.iterations} / {resolve_info.iterations}"
     r["batch (sum of pieces)"] = sum(v for k, v in p.items() if not k.startswith(" "))
     r["batch warm"], _ = best(whole, repeats)
     r["pieces"] = p
@@ -193,25 +192,23 @@ def _t(x: float) -> str:
 
 def summary(rows: list[dict]) -> str:
     head = ("| tets | dofs | S nnz/row | sites / new vertices | initial S | floor | step "
-            "| step/floor | batch cold | batch warm | warm/floor | warm/step | peak MiB |")
+            "| step/floor | iterations step / re-solve | batch cold | batch warm | warm/floor "
+            "| warm/step | peak MiB |")
     body = [
         f"| {r['tets']:,} | {r['dofs']:,} | {r['nnz/row']:.0f} | {r['sites']} / "
         f"{r['new vertices']} | {_t(r['smoothing operator'])} | {_t(r['floor'])} "
-        f"| {_t(r['step'])} | {r['step'] / r['floor']:.2f} | {_t(r['batch cold'])} "
+        f"| {_t(r['step'])} | {r['step'] / r['floor']:.2f} | {r['iterations']} "
+        f"| {_t(r['batch cold'])} "
         f"| {_t(r['batch warm'])} | **{r['batch warm'] / r['floor']:.0f}** "
         f"| **{r['batch warm'] / r['step']:.1f}** | {r['peak_mib']:,.0f} |" for r in rows]
-    return "\n".join([head, "|" + "---|" * 13, *body])
+    return "\n".join([head, "|" + "---|" * 14, *body])
 
 
 def pieces(rows: list[dict]) -> str:
     """Each piece: time, in floors, in plain steps."""
     head = "| piece (time, /floor, /step) | " + " | ".join(f"{r['tets']:,}" for r in rows) + " |"
-    floor = [("back-solve", "back-solve"), ("  strain", "strain"),
-             ("  law.update", "law.update"), ("  internal force", "internal force")]
-    body = []
-    for label, key in floor:
-        body.append(f"| floor: {label.strip()} | "
-                    + " | ".join(f"{_t(r[key])}, {r[key] / r['floor']:.2f}" for r in rows) + " |")
+    body = [f"| floor: {k} | " + " | ".join(f"{_t(r[k])}, {r[k] / r['floor']:.2f}" for r in rows)
+            + " |" for k in ("back-solve", "strain", "law.update", "internal force")]
     for label in rows[0]["pieces"]:
         cells = []
         for r in rows:
@@ -229,30 +226,22 @@ def pieces(rows: list[dict]) -> str:
 def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--sizes", type=int, nargs="+", default=[10_000, 100_000])
-    p.add_argument("--repeats", type=int, default=3, help="best of (2 from 50k tets up)")
+    p.add_argument("--repeats", type=int, default=3, help="best of, for every piece")
     p.add_argument("--one", type=int, help=argparse.SUPPRESS)
-    p.add_argument("--json", help="also write the rows to this file")
     args = p.parse_args()
     if args.one:
-        print(json.dumps(one(args.one, args.repeats if args.one < 50_000 else
-                             min(args.repeats, 2))))
+        print(json.dumps(one(args.one, args.repeats)))
         return
     rows = []
     for n in args.sizes:
-        t0 = time.perf_counter()
         cmd = [sys.executable, __file__, "--one", str(n), "--repeats", str(args.repeats)]
         done = subprocess.run(cmd, capture_output=True, text=True)
         if done.returncode != 0:
             print(f"{n} tets: failed\n{done.stderr[-3000:]}", file=sys.stderr)
             continue
         rows.append(json.loads(done.stdout.strip().splitlines()[-1]))
-        print(f"{n} tets: {time.perf_counter() - t0:.0f} s", file=sys.stderr, flush=True)
-    if args.json:
-        Path(args.json).write_text(json.dumps(rows, indent=1) + "\n")
     if rows:
-        print(summary(rows))
-        print()
-        print(pieces(rows))
+        print(summary(rows) + "\n\n" + pieces(rows))
 
 
 if __name__ == "__main__":

@@ -27,8 +27,9 @@ EXAMPLES = """examples:
 def _parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(
         prog="fem-frac",
-        description="Finite-element solver for elastic and elastoplastic solids on tetrahedra:\n"
-        "static, quasi-static and dynamic analyses (fracture to come). A YAML case file\n"
+        description="Finite-element solver for elastic, elastoplastic and brittle solids on\n"
+        "tetrahedra: static, quasi-static and dynamic analyses, cracks opened by face\n"
+        "separation where the smoothed stress exceeds the strength. A YAML case file\n"
         "describes the scene; the output is a VTK time series (.pvd + .vtu) that ParaView\n"
         "opens, with a history.csv of energies, reactions and iterations.",
         epilog=EXAMPLES,
