@@ -1,32 +1,28 @@
 """One crack-insertion batch against one plain step and its floor (DESIGN §3, §7).
 
-RESULTS
-
 The floor of a step is one back-solve with the cached elastic factorization plus one pass over
 the quadrature points (strain ``B u``, ``law.update``, internal force ``B^T sigma dx``), each
-timed alone. Against it, on the same state, this times a plain elastic step
-(``ImplicitStepper.step``) and every piece of one batch of the fracture stage, in the order
-``FractureStage.__call__`` runs them: selection (``stage.sites``: cell average, smoothing,
-eigen-decomposition, site choice), ``stage.open`` (``open_crack`` and the debris check), the
-rebuild (``stage.build``: space, loads, operators, stepper), ``stage._prepare`` (smoothing
-update ``update_operator`` and the other per-topology caches), the support check, the state
-carried over (``stage.carry``), the refactorization (the new stepper's first
-``elastic_factor()``) and the re-solve step. Each piece is the best of ``--repeats`` calls,
-each from cold caches (a 64 MiB buffer written first, as in plastic_step.py); the whole batch
-is also timed end to end through ``stage(...)``: cold (the first batch of the process, the
-first thing after the setup, as in a run) and warm (best of the repeats after the pieces).
+timed alone. On the same state this times a plain elastic step (``ImplicitStepper.step``) and
+each piece of one batch of the fracture stage, in the order ``FractureStage.__call__`` runs
+them: selection (``stage.sites``), ``stage.open`` (``open_crack``, debris check), rebuild
+(``stage.build``: space, loads, operators, stepper), ``stage._prepare`` (``update_operator``
+and the other per-topology caches), support check, ``stage.carry``, refactorization (the new
+stepper's first ``elastic_factor()``) and the re-solve step. Each piece: best of
+``--repeats``, each call from cold caches (a 64 MiB buffer written first, as in
+plastic_step.py); the whole batch also end to end through ``stage(...)``, cold (the first
+batch of the process, right after the setup, as in a run) and warm (best of the repeats).
 
-The scene: the brittle bar of tests/test_fracture.py (E = 30 GPa, nu = 0.2, strength 3 MPa),
-0.1 x 0.02 x 0.02, symmetry on xmin/ymin/zmin, displacement on xmax, quasi-static in 2 steps
-to 1.02 times the strength (the stress is uniform: every element is over strength, the
-selection's worst case), meshed by gmsh with the element size h that gives ~N tets. The
-smoothing length is 1.5 h (tied to the mesh, so a neighbourhood holds about the same number of
-tets, ~60, at every size); ``batch_size`` 8, one pass, xmin and xmax protected. The batch is
-taken after step 2 from the committed state of step 1 (``stage.carry``) to the end of step 2.
-Each size runs in a fresh subprocess.
+Scene: the brittle bar of tests/test_fracture.py (E = 30 GPa, nu = 0.2, strength 3 MPa),
+0.1 x 0.02 x 0.02, symmetry on xmin/ymin/zmin, displacement on xmax, quasi-static, 2 steps to
+1.02 x strength; the stress is uniform, so every element is over strength (the selection's
+worst case). gmsh, element size h for ~N tets; smoothing length 1.5 h (tied to the mesh: ~55
+tets per neighbourhood at every size); batch_size 8, one pass, xmin and xmax protected. The
+batch follows step 2, carrying the committed state of step 1. One subprocess per size.
 
-    python benchmarks/fracture.py                       # 10k and 100k tets
+    python benchmarks/fracture.py                       # 10k and 100k tets, best of 3
     python benchmarks/fracture.py --sizes 10000 --repeats 5
+
+RESULTS
 """
 
 from __future__ import annotations
@@ -190,37 +186,32 @@ def _t(x: float) -> str:
     return f"{1e3 * x:.1f} ms" if x < 1 else f"{x:.2f} s"
 
 
-def summary(rows: list[dict]) -> str:
-    head = ("| tets | dofs | S nnz/row | sites / new vertices | initial S | floor | step "
-            "| step/floor | iterations step / re-solve | batch cold | batch warm | warm/floor "
-            "| warm/step | peak MiB |")
-    body = [
-        f"| {r['tets']:,} | {r['dofs']:,} | {r['nnz/row']:.0f} | {r['sites']} / "
-        f"{r['new vertices']} | {_t(r['smoothing operator'])} | {_t(r['floor'])} "
-        f"| {_t(r['step'])} | {r['step'] / r['floor']:.2f} | {r['iterations']} "
-        f"| {_t(r['batch cold'])} "
-        f"| {_t(r['batch warm'])} | **{r['batch warm'] / r['floor']:.0f}** "
-        f"| **{r['batch warm'] / r['step']:.1f}** | {r['peak_mib']:,.0f} |" for r in rows]
-    return "\n".join([head, "|" + "---|" * 14, *body])
+def table(rows: list[dict]) -> str:
+    """One column per size; times with their ratios to the floor and to a plain step."""
+    def cells(f) -> str:
+        return " | ".join(f(r) for r in rows) + " |"
 
+    def times(key: str, digits: int = 1):
+        return lambda r: (f"{_t(r[key])}, {r[key] / r['floor']:.{digits}f}, "
+                          f"{r[key] / r['step']:.{digits}f}")
 
-def pieces(rows: list[dict]) -> str:
-    """Each piece: time, in floors, in plain steps."""
-    head = "| piece (time, /floor, /step) | " + " | ".join(f"{r['tets']:,}" for r in rows) + " |"
-    body = [f"| floor: {k} | " + " | ".join(f"{_t(r[k])}, {r[k] / r['floor']:.2f}" for r in rows)
-            + " |" for k in ("back-solve", "strain", "law.update", "internal force")]
-    for label in rows[0]["pieces"]:
-        cells = []
-        for r in rows:
-            x = r["pieces"][label]
-            cells.append(f"{_t(x)}, {x / r['floor']:.1f}, {x / r['step']:.2f}")
-        name = label.replace("  ", "- ") if label.startswith(" ") else f"**{label}**"
-        body.append(f"| {name} | " + " | ".join(cells) + " |")
-    for key in ("batch (sum of pieces)", "batch warm", "batch cold"):
-        body.append(f"| **{key}** | " + " | ".join(
-            f"{_t(r[key])}, {r[key] / r['floor']:.0f}, {r[key] / r['step']:.1f}"
-            for r in rows) + " |")
-    return "\n".join([head, "|" + "---|" * (len(rows) + 1), *body])
+    out = ["| (time, /floor, /step) | " + cells(lambda r: f"{r['tets']:,} tets"),
+           "|" + "---|" * (len(rows) + 1),
+           "| dofs, smoothing nnz/row | " + cells(lambda r: f"{r['dofs']:,}, {r['nnz/row']:.0f}"),
+           "| sites / new vertices | " + cells(lambda r: f"{r['sites']} / {r['new vertices']}"),
+           "| iterations: step / re-solve | " + cells(lambda r: r["iterations"]),
+           "| peak MiB | " + cells(lambda r: f"{r['peak_mib']:,.0f}"),
+           "| initial smoothing operator | " + cells(times("smoothing operator", 0))]
+    for k in ("floor", "back-solve", "strain", "law.update", "internal force", "step"):
+        name = "**floor**" if k == "floor" else ("**plain step**" if k == "step" else
+                                                 f"- {k}")
+        out.append(f"| {name} | " + cells(times(k, 2)))
+    for k in rows[0]["pieces"]:
+        name = k.replace("  ", "- ") if k.startswith(" ") else f"**{k}**"
+        out.append(f"| {name} | " + cells(lambda r, k=k: times(k)(r["pieces"] | r)))
+    for k in ("batch (sum of pieces)", "batch warm", "batch cold"):
+        out.append(f"| **{k}** | " + cells(times(k, 0)))
+    return "\n".join(out)
 
 
 def main() -> None:
@@ -241,7 +232,7 @@ def main() -> None:
             continue
         rows.append(json.loads(done.stdout.strip().splitlines()[-1]))
     if rows:
-        print(summary(rows) + "\n\n" + pieces(rows))
+        print(table(rows))
 
 
 if __name__ == "__main__":

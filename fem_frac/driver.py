@@ -494,7 +494,10 @@ def _summary(setup: Setup, case_path, state, ledger, counters, timer, fracture=N
             "iterations": counters.iterations,
             "cutbacks": counters.cutbacks,
             "solves": counters.solves,
-            "factorizations": counters.factorizations + (1 if counters.solver else 0),
+            # the elastic matrix once per topology (implicit), Newton's tangents
+            "factorizations": counters.factorizations + (
+                (1 + (len(fracture.batches) if fracture is not None else 0))
+                if counters.solver else 0),
             "max_relative_residual": counters.max_residual,
             "energy_error_relative": ledger.relative_error,
         },
