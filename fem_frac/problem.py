@@ -202,6 +202,10 @@ def free_rigid_modes(space: Space, constrained: np.ndarray,
     names = [f"translation {a}" for a in AXES] + [f"rotation about {a}" for a in AXES]
     if r.shape[0] == 0:
         return names
+    # the 6 columns' right singular vectors, from the small triangular factor of r (an SVD
+    # of r itself with full_matrices would build a k x k matrix for k constrained dofs)
+    if r.shape[0] > 6:
+        r = np.linalg.qr(r, mode="r")
     _, s, vt = np.linalg.svd(r, full_matrices=True)
     rank = int(np.sum(s > 1e-9 * s.max()))
     if rank == 6:

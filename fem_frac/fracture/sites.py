@@ -22,6 +22,11 @@ import numpy as np
 import scipy.sparse as sp
 
 
+# Candidates tested per vectorized block (in decreasing stress): a batch is usually full
+# long before every element over strength has been looked at.
+CHUNK = 256
+
+
 @dataclass(frozen=True, eq=False)
 class Sites:
     """A batch of crack sites: ``elements (k,)`` over strength, the ``vertices (k,)`` to split
@@ -146,35 +151,40 @@ def select_sites(points: np.ndarray, tets: np.ndarray, sigma1: np.ndarray,
         return empty
     lookups = lookups if lookups is not None else star(tets, points.shape[0])
     centroids = points[tets].mean(axis=1)
-    # every (candidate, corner) pair whose plane cuts the vertex's tets in two, vectorized;
-    # the rest of the rules run in the (short) loop below
-    corners = tets[candidates]  # (k, 4)
-    normals = direction[candidates]
-    cut = two_sided(points, centroids, lookups.incidence, corners.ravel(),
-                    np.repeat(normals, 4, axis=0)).reshape(-1, 4) & ~protected[corners]
-    keep = cut.any(axis=1)
-    candidates, corners, cut = candidates[keep], corners[keep], cut[keep]
-    order = np.lexsort((candidates, -sigma1[candidates]))
+    candidates = candidates[np.lexsort((candidates, -sigma1[candidates]))]
     pattern = neighbourhood.tocsr()
     claimed = np.zeros(tets.shape[0], dtype=bool)
     used = np.zeros(points.shape[0], dtype=bool)
     chosen: list[tuple[int, int]] = []
-    for i in order.tolist():
-        e = int(candidates[i])
-        if claimed[e]:
-            continue
-        n = direction[e]
-        distance = np.abs((points[corners[i]] - centroids[e]) @ n)
-        preference = np.lexsort((corners[i], distance, ~on_crack[corners[i]]))
-        for j in preference.tolist():
-            v = int(corners[i, j])
-            if not cut[i, j] or used[v] or not splits(points, tets, centroids, lookups, v, n):
+    chunk = max(CHUNK, 8 * limit)
+    for begin in range(0, candidates.size, chunk):
+        block = candidates[begin:begin + chunk]
+        block = block[~claimed[block]]
+        # every (candidate, corner) pair whose plane cuts the vertex's tets in two,
+        # vectorized over the block; the rest of the rules run in the loop below
+        corners = tets[block]  # (k, 4)
+        cut = two_sided(points, centroids, lookups.incidence, corners.ravel(),
+                        np.repeat(direction[block], 4, axis=0)).reshape(-1, 4)
+        cut &= ~protected[corners]
+        for i in np.flatnonzero(cut.any(axis=1)).tolist():
+            e = int(block[i])
+            if claimed[e]:
                 continue
-            chosen.append((e, v))
-            used[v] = True
-            claimed[pattern.indices[pattern.indptr[e]:pattern.indptr[e + 1]]] = True
-            claimed[e] = True
-            break
+            n = direction[e]
+            distance = np.abs((points[corners[i]] - centroids[e]) @ n)
+            preference = np.lexsort((corners[i], distance, ~on_crack[corners[i]]))
+            for j in preference.tolist():
+                v = int(corners[i, j])
+                if (not cut[i, j] or used[v]
+                        or not splits(points, tets, centroids, lookups, v, n)):
+                    continue
+                chosen.append((e, v))
+                used[v] = True
+                claimed[pattern.indices[pattern.indptr[e]:pattern.indptr[e + 1]]] = True
+                claimed[e] = True
+                break
+            if len(chosen) == limit:
+                break
         if len(chosen) == limit:
             break
     if not chosen:
