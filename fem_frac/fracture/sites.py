@@ -21,7 +21,6 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.sparse as sp
 
-
 # Candidates tested per vectorized block (in decreasing stress): a batch is usually full
 # long before every element over strength has been looked at.
 CHUNK = 256
