@@ -321,9 +321,7 @@ class ImplicitStepper:
             f_ext = f_ext - alpha * problem.external_force(old.t)
         history = alpha * (damp_old + old.internal_force) if alpha else 0.0
         u_pred, v_pred = s.predict(old.u, old.v, old.a) if inertia else (old.u, old.v)
-        # the step's force scale: loads, and the internal force it starts from (a body cut
-        # free under prescribed displacements ends with f_ext = f_int = 0)
-        f_ext_norm = max(_norm(f_ext), _norm(old.internal_force))
+        f_ext_norm = _norm(f_ext)
 
         u = old.u.copy()
         u[fixed] = problem.prescribed(t)
