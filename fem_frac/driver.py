@@ -6,7 +6,7 @@ import json
 import sys
 import time
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -70,16 +70,17 @@ def build_model(case: Case, case_dir: Path, timer: StageTimer, log: Log = quiet)
     return model
 
 
-def model_on(case: Case, mesh: Mesh, timer: StageTimer) -> Model:
+def model_on(case: Case, mesh: Mesh, timer: StageTimer, strict: bool = True) -> Model:
     """Function space, materials, supports and loads of ``case`` on ``mesh`` (also a mesh
-    that crack insertion made: named groups follow the faces they named)."""
+    that crack insertion made: named groups follow the faces they named; ``strict=False``
+    lets a condition whose faces left with a rigid piece act on nothing)."""
     with timer("space"):
         space = build_space(mesh, case.mesh.order)
     with timer("loads"):
         materials = element_materials(case.material, case.regions, mesh)
         problem = build_problem(
             space, case.boundary_conditions, case.body_force, materials.density,
-            case.analysis, case.load_curves,
+            case.analysis, case.load_curves, strict,
         )
     return Model(mesh, space, problem, materials)
 
@@ -167,6 +168,7 @@ class Discretization:
     constrained: Constrained
     stepper: object
     limit: ExplicitLimit | None
+    law: MaterialLaw
 
 
 @dataclass(frozen=True, eq=False)
@@ -188,7 +190,8 @@ class Setup:
 
     @property
     def discretization(self) -> Discretization:
-        return Discretization(self.model, self.ops, self.constrained, self.stepper, self.limit)
+        return Discretization(self.model, self.ops, self.constrained, self.stepper, self.limit,
+                              self.law)
 
 
 def prepare(case: Case, case_dir: Path, timer: StageTimer, log: Log = quiet) -> Setup:
@@ -246,7 +249,7 @@ def discretize(case: Case, model: Model, law: MaterialLaw, dt: float, timer: Sta
         equilibrium = Equilibrium(**analysis.equilibrium.model_dump())
         stepper = ImplicitStepper(problem, law, ops, scheme(analysis, dt), equilibrium,
                                   constrained)
-    return Discretization(model, ops, constrained, stepper, limit)
+    return Discretization(model, ops, constrained, stepper, limit, law)
 
 
 def fracture_stage(setup: Setup, timer: StageTimer, log: Log = quiet):
@@ -258,9 +261,11 @@ def fracture_stage(setup: Setup, timer: StageTimer, log: Log = quiet):
 
     def build(mesh: Mesh) -> Discretization:
         with timer("fracture rebuild"):
-            model = model_on(case, mesh, timer)
+            model = model_on(case, mesh, timer, strict=False)
+            # per-element properties follow the elements (a piece may have left the mesh)
+            law = material_law(model.materials, case.plasticity)
             try:
-                return discretize(case, model, setup.law, setup.grid.dt, timer)
+                return discretize(case, model, law, setup.grid.dt, timer)
             except CaseError as exc:
                 raise SolverError(f"after crack insertion: {exc.message}") from None
 
@@ -268,14 +273,54 @@ def fracture_stage(setup: Setup, timer: StageTimer, log: Log = quiet):
                          log)
 
 
+def rigid_stage(setup: Setup, fracture, log: Log = quiet):
+    """The fragments stage of a case with a ``fragments:`` section (``None`` without)."""
+    case = setup.case
+    if case.fragments is None:
+        return None
+    from .rigid.stage import RigidStage
+
+    f = case.fragments
+    gravity = f.gravity if f.gravity is not None else (
+        case.body_force.gravity if case.body_force is not None else (0.0, 0.0, 0.0))
+    return RigidStage(f, gravity, fracture, log)
+
+
+class Chain:
+    """Stages run in order after every step (fracture, then fragments); the last system a
+    stage returns replaces the step loop's."""
+
+    def __init__(self, *stages):
+        self.stages = [s for s in stages if s is not None]
+
+    def __call__(self, n, start, start_ledger, end, ledger, info):
+        system = None
+        for stage in self.stages:
+            end, ledger, info, changed = stage(n, start, start_ledger, end, ledger, info)
+            system = changed if changed is not None else system
+        return end, ledger, info, system
+
+
+def resting(d: Discretization, t: float) -> State:
+    """A zero state of ``d`` at ``t``: what the finite elements report once none are left."""
+    n = d.model.space.n_dofs
+    z = np.zeros(n)
+    return State(t, z, z, z, np.zeros((6,) + d.ops.weights.shape), None, z,
+                 np.zeros(len(d.constrained.dofs)))
+
+
 def simulate(setup: Setup, timer: StageTimer, observe: Observer, log: Log = quiet,
-             fracture=None):
+             fracture=None, rigid=None):
     """Factorize, take every step; ``observe(n, state, ledger, info)`` sees each committed
     step, step 0 included; ``fracture`` (a :class:`~fem_frac.fracture.stage.FractureStage`)
-    runs after each. Returns ``(state, ledger, counters)``."""
+    and ``rigid`` (a :class:`~fem_frac.rigid.stage.RigidStage`) run after each. Once no
+    finite element is left (or with ``fragments.whole_body``) only rigid bodies move.
+    Returns ``(state, ledger, counters)``."""
     model, analysis = setup.model, setup.case.analysis
     counters = Counters()
-    if isinstance(setup.stepper, ImplicitStepper):
+    times = np.array([setup.grid.time(n) for n in range(setup.grid.steps + 1)])
+    whole = rigid is not None and setup.case.fragments.whole_body
+    if isinstance(setup.stepper, ImplicitStepper) and not whole:
         with timer("factorize"):
             factor = setup.stepper.elastic_factor()
         counters.solver = factor.method
@@ -291,10 +336,44 @@ def simulate(setup: Setup, timer: StageTimer, observe: Observer, log: Log = quie
             # t = 0 (a load on a 'constant' curve is on from the start); its energy is the
             # ledger's initial energy
             state, _ = setup.stepper.step(state, 0.0, 0)
-    times = np.array([setup.grid.time(n) for n in range(setup.grid.steps + 1)])
+    if whole:
+        from .stepping import initial_ledger
+
+        d = setup.discretization
+        body = rigid.hand_off(d, state, np.arange(model.mesh.n_tets))
+        rigid.fragments.append(body)
+        rigid.only = True
+        ledger = initial_ledger(state, setup.law, setup.ops)
+        ledger = replace(ledger, handed_off=ledger.kinetic + ledger.elastic, kinetic=0.0,
+                         elastic=0.0)
+        with timer("steps"):
+            return march_rigid(rigid, times, 0, resting(d, 0.0), ledger, StepInfo(0, 0.0),
+                               observe, counters, d)
+    from .rigid.stage import AllRigid
+
     with timer("steps"):
-        state, ledger = march(setup.stepper, state, times, model.problem, setup.law,
-                              setup.ops, observe, counters, after_step=fracture)
+        try:
+            state, ledger = march(setup.stepper, state, times, model.problem, setup.law,
+                                  setup.ops, observe, counters,
+                                  after_step=Chain(fracture, rigid))
+        except AllRigid as done:
+            counters.steps += 1
+            d = fracture.current
+            frozen = replace(done.ledger, kinetic=0.0, elastic=0.0)
+            return march_rigid(rigid, times, done.step, resting(d, done.state.t), frozen,
+                               done.info, observe, counters, d)
+    return state, ledger, counters
+
+
+def march_rigid(rigid, times: np.ndarray, n: int, state: State, ledger: Ledger,
+                info: StepInfo, observe: Observer, counters: Counters, d: Discretization):
+    """Steps ``n`` (observed here) to the end with rigid bodies only."""
+    observe(n, state, ledger, info)
+    for k in range(n + 1, len(times)):
+        rigid.move(float(times[k - 1]), float(times[k]))
+        state = replace(state, t=float(times[k]))
+        counters.steps += 1
+        observe(k, state, ledger, StepInfo(0, 0.0))
     return state, ledger, counters
 
 
@@ -317,6 +396,7 @@ def run_case(
     progress = Progress(log, setup.grid.steps)
     recorder = Recorder(setup)
     fracture = fracture_stage(setup, timer, log)
+    rigid = rigid_stage(setup, fracture, log)
     cracks = None
     if fracture is not None and case.output.crack_surface:
         cracks = SeriesWriter(out_dir, f"{name}_crack")
@@ -327,17 +407,20 @@ def run_case(
             row = history_row(n, st, ledger, info, current.problem, timer.total())
             if fracture is not None:
                 row.update(fracture_row(fracture, info))
+            if rigid is not None:
+                row.update(rigid_row(rigid))
             history.write(row)
             recorder(n, st)
             if output.due(n):
                 with timer("output"):
-                    write_step(writer, current.space, st, setup.dynamic, fracture)
+                    write_step(writer, current.space, st, setup.dynamic, fracture, rigid)
                     if cracks is not None:
-                        write_crack_surface(cracks, current.mesh, st)
+                        write_crack_surface(cracks, current.mesh, st,
+                                            rigid is not None and rigid.only)
             progress(n, st, info)
 
-        state, ledger, counters = simulate(setup, timer, observe, log, fracture)
-    summary = _summary(setup, case_path, state, ledger, counters, timer, fracture)
+        state, ledger, counters = simulate(setup, timer, observe, log, fracture, rigid)
+    summary = _summary(setup, case_path, state, ledger, counters, timer, fracture, rigid)
     if case.reference is not None:
         summary["reference"] = reference_error(setup, state, recorder)
         ref = summary["reference"]
@@ -393,7 +476,9 @@ class Progress:
 
 
 def write_step(writer: SeriesWriter, space: Space, state: State, dynamic: bool,
-               fracture=None) -> None:
+               fracture=None, rigid=None) -> None:
+    """One output step: the finite elements, then every rigid fragment (its nodes at their
+    reference positions, moved by ``displacement``), in one unstructured grid."""
     point_data = {"displacement": state.u.reshape(-1, 3)}
     if dynamic:
         point_data["velocity"] = state.v.reshape(-1, 3)
@@ -404,19 +489,43 @@ def write_step(writer: SeriesWriter, space: Space, state: State, dynamic: bool,
         cell_data["fragment_id"] = fracture.labels.astype(np.int32)
         sigma1, _ = fracture.principal(state)
         cell_data["smoothed_max_principal_stress"] = sigma1
-    writer.write(state.t, space.node_points, vtk_cells(space), point_data, cell_data)
+    kind, cells = vtk_cells(space)
+    points = space.node_points
+    if rigid is not None:
+        from .rigid.output import with_rigid_fragments
+
+        first_id = 0 if fracture is None or rigid.only else fracture.n_fragments
+        points, cells, point_data, cell_data = with_rigid_fragments(
+            rigid.fragments, points, cells, point_data, cell_data, first_id,
+            none_deformable=rigid.only)
+    writer.write(state.t, points, (kind, cells), point_data, cell_data)
 
 
-def write_crack_surface(writer: SeriesWriter, mesh: Mesh, state: State) -> None:
-    """The crack faces (both sides) as triangles over the mesh's vertices, with their
-    displacement; written at every output step, empty before the first crack (ParaView
-    drops a series' part that first appears mid-way)."""
+def write_crack_surface(writer: SeriesWriter, mesh: Mesh, state: State,
+                        none_deformable: bool = False) -> None:
+    """The crack faces (both sides) of the deformable part as triangles over the mesh's
+    vertices, with their displacement; written at every output step, empty before the first
+    crack (ParaView drops a series' part that first appears mid-way)."""
     from .fracture import CRACK
 
     tri = np.asarray(mesh.boundaries.get(CRACK, np.zeros((0, 3), dtype=np.int64)))
+    if none_deformable:
+        tri = tri[:0]
     u = state.u.reshape(-1, 3)[: mesh.n_points]  # P2: vertices come first
     writer.write(state.t, mesh.points, ("triangle", tri.astype(np.int64)),
                  {"displacement": u}, {})
+
+
+def rigid_row(rigid) -> dict:
+    """History columns of the fragments stage."""
+    kinetic, potential = rigid.energies()
+    return {
+        "rigid_bodies": len(rigid.fragments),
+        "rigid_kinetic_energy": kinetic,
+        "rigid_potential_energy": potential,
+        "handed_off_energy": rigid.handed_energy,
+        "vibration_energy_removed": rigid.vibration_energy,
+    }
 
 
 def fracture_row(fracture, info: StepInfo) -> dict:
@@ -442,6 +551,7 @@ def history_row(n: int, state: State, ledger: Ledger, info: StepInfo, problem: P
         "damping_work": ledger.damping_work,
         "external_work": ledger.external_work,
         "fracture_energy": ledger.fracture,
+        "handed_off": ledger.handed_off,
         "energy_error": ledger.error,
         "energy_error_relative": ledger.relative_error,
     }
@@ -451,7 +561,8 @@ def history_row(n: int, state: State, ledger: Ledger, info: StepInfo, problem: P
         total = full[dofs].reshape(-1, 3).sum(axis=0)
         for axis, value in zip("xyz", total, strict=True):
             row[f"reaction_{label}_{axis}"] = float(value)
-    row["max_displacement"] = float(np.linalg.norm(state.u.reshape(-1, 3), axis=1).max())
+    row["max_displacement"] = float(np.linalg.norm(state.u.reshape(-1, 3), axis=1).max(
+        initial=0.0))
     if state.plastic is not None:
         alpha = state.plastic.equivalent_plastic_strain
         row["yielded_points"] = int(np.count_nonzero(alpha > 0.0))
@@ -465,7 +576,8 @@ def history_row(n: int, state: State, ledger: Ledger, info: StepInfo, problem: P
     return row
 
 
-def _summary(setup: Setup, case_path, state, ledger, counters, timer, fracture=None) -> dict:
+def _summary(setup: Setup, case_path, state, ledger, counters, timer, fracture=None,
+             rigid=None) -> dict:
     case, model, grid, limit = setup.case, setup.model, setup.grid, setup.limit
     if fracture is not None:
         model, limit = fracture.current.model, fracture.current.limit
@@ -502,7 +614,10 @@ def _summary(setup: Setup, case_path, state, ledger, counters, timer, fracture=N
             "energy_error_relative": ledger.relative_error,
         },
         "linear_solver": counters.solver or "none (explicit)",
-        "max_displacement": float(np.linalg.norm(state.u.reshape(-1, 3), axis=1).max()),
+        "max_displacement": max(
+            [float(np.linalg.norm(state.u.reshape(-1, 3), axis=1).max(initial=0.0))]
+            + [float(np.linalg.norm(f.displacement(), axis=1).max())
+               for f in (rigid.fragments if rigid is not None else [])]),
         "strain_energy": ledger.elastic,
         "kinetic_energy": ledger.kinetic,
         "plastic_dissipation": ledger.plastic_dissipation,
@@ -533,6 +648,21 @@ def _summary(setup: Setup, case_path, state, ledger, counters, timer, fracture=N
             "first_crack_time": _first_crack_time(setup, batches),
             "energy_released": ledger.fracture,
             "insertion_seconds": round(fracture.rebuild_seconds, 6),
+        }
+    if rigid is not None:
+        kinetic, potential = rigid.energies()
+        out["fragments"] = {
+            "rigid_bodies": len(rigid.fragments),
+            "finite_elements_left": not rigid.only,
+            "rigid_kinetic_energy": kinetic,
+            "rigid_potential_energy": potential,
+            "handed_off_energy": rigid.handed_energy,
+            "vibration_energy_removed": rigid.vibration_energy,
+            "bodies": [{"mass": f.body.mass, "born": f.born,
+                        "position": f.body.position.tolist(),
+                        "momentum": f.body.momentum.tolist(),
+                        "angular_momentum": f.body.angular_momentum.tolist()}
+                       for f in rigid.fragments],
         }
     return out
 

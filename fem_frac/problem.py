@@ -71,7 +71,8 @@ def outer_facets(mesh) -> np.ndarray:
     return exterior[~np.isin(keys, facet_keys(crack, mesh.n_points))]
 
 
-def _select(space: Space, bc, index: int, exterior: np.ndarray) -> np.ndarray:
+def _select(space: Space, bc, index: int, exterior: np.ndarray,
+            strict: bool = True) -> np.ndarray:
     mesh = space.mesh
     if bc.boundary is not None:
         try:
@@ -85,6 +86,8 @@ def _select(space: Space, bc, index: int, exterior: np.ndarray) -> np.ndarray:
         key = ("boundary_conditions", index, "box")
         what = "the box"
     if len(triples) == 0:
+        if not strict:
+            return np.zeros(0, dtype=np.int64)
         raise CaseError(key, f"{what} selects no boundary faces")
     return space.facet_indices(triples)
 
@@ -100,11 +103,14 @@ def build_problem(
     density,
     analysis=None,
     load_curves: dict | None = None,
+    strict: bool = True,
 ) -> Problem:
     """Constraints, external forces and reaction groups of the case on ``space``.
 
     Where two conditions prescribe the same dof, the later one wins. ``analysis`` sets the
-    default curve and the end time of ramps (static when omitted).
+    default curve and the end time of ramps (static when omitted). ``strict``: a selection
+    without faces is an error; otherwise (a mesh whose loaded or supported part has left as
+    a rigid piece) the condition acts on nothing.
     """
     from .loading import resolve_curves
 
@@ -120,7 +126,12 @@ def build_problem(
     groups: dict[str, np.ndarray] = {}
     described = []
     for i, bc in enumerate(conditions):
-        facets = _select(space, bc, i, exterior)
+        facets = _select(space, bc, i, exterior, strict)
+        if len(facets) == 0:  # (only when not strict)
+            if not isinstance(bc, (schema.Traction, schema.Pressure)):
+                groups[_label(bc, i)] = np.zeros(0, dtype=np.int64)
+            described.append(f"{bc.type} on {_label(bc, i)} (no faces left)")
+            continue
         timing = f", curve {names[curve_of[i]]}" if hasattr(bc, "curve") else ""
         if isinstance(bc, (schema.Traction, schema.Pressure)):
             if isinstance(bc, schema.Traction):

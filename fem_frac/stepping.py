@@ -78,13 +78,15 @@ class Ledger:
     # energy released by crack insertion where nothing else can take it (no inertia): the
     # imbalance of the steps retaken on a cracked mesh, see fem_frac.fracture.stage
     fracture: float = 0.0
+    # kinetic and strain energy of pieces that left the finite elements as rigid bodies
+    handed_off: float = 0.0
 
     @property
     def error(self) -> float:
-        """kinetic + elastic + plastic work + damping work + fracture - external work -
-        initial."""
+        """kinetic + elastic + plastic work + damping work + fracture + handed off -
+        external work - initial."""
         return (self.kinetic + self.elastic + self.plastic_work + self.damping_work
-                + self.fracture - self.external_work - self.initial)
+                + self.fracture + self.handed_off - self.external_work - self.initial)
 
     @property
     def relative_error(self) -> float:
@@ -267,7 +269,7 @@ def account(ledger: Ledger, old: State, new: State, problem: Problem, law: Mater
     stored = kinetic + elastic + plastic_work + abs(damping)
     scale = max(ledger.scale, stored, abs(external))
     return Ledger(kinetic, elastic, hardening, plastic_work, damping, external,
-                  ledger.initial, scale, ledger.fracture)
+                  ledger.initial, scale, ledger.fracture, ledger.handed_off)
 
 
 class ImplicitStepper:
@@ -505,6 +507,7 @@ class System:
     problem: Problem
     ops: Operators
     stepper: object
+    law: MaterialLaw
 
 
 # ``after_step(n, start, start_ledger, end, ledger, info)``: a stage run between steps (crack
@@ -532,7 +535,8 @@ def march(stepper, state: State, times: np.ndarray, problem: Problem, law: Mater
             state, ledger, info, system = after_step(n, first, first_ledger, state, ledger,
                                                      info)
             if system is not None:
-                stepper, problem, ops = system.stepper, system.problem, system.ops
+                stepper, problem, ops, law = system.stepper, system.problem, system.ops, \
+                    system.law
         counters.steps += 1
         counters.iterations += info.iterations
         counters.solves += info.solves

@@ -216,6 +216,50 @@ class Fracture(Section):
     protect: list[Protect] = []
 
 
+# --- rigid fragments ----------------------------------------------------------------------
+
+
+class Ground(Section):
+    """A ground plane through ``point`` with upward ``normal``; rigid fragments bounce off it
+    with ``restitution`` (0: no bounce, 1: elastic) and slide with Coulomb ``friction``."""
+
+    point: Vector3 = (0.0, 0.0, 0.0)
+    normal: Vector3 = (0.0, 0.0, 1.0)
+    restitution: Annotated[float, Field(ge=0.0, le=1.0)] = 0.5
+    friction: NonNegativeFloat = 0.5
+
+    @model_validator(mode="after")
+    def _normal(self):
+        if sum(c * c for c in self.normal) == 0.0:
+            raise ValueError("normal must not be zero")
+        return self
+
+
+class Fragments(Section):
+    """Pieces that break free (no support left) become rigid bodies: ``all`` of them,
+    those no larger than ``max_volume`` (``small``), or each once its vibration has decayed
+    (``settled``: strain plus vibrational kinetic energy below ``vibration_tolerance`` of
+    its rigid kinetic energy); ``never`` keeps them deformable. ``whole_body`` makes the
+    whole body one rigid body from the start (no finite elements: ``analysis`` gives the time
+    steps and the initial velocity). ``gravity`` (default: ``body_force.gravity``) acts on
+    rigid bodies; ``ground`` planes stop them."""
+
+    become_rigid: Literal["all", "small", "settled", "never"] = "all"
+    max_volume: PositiveFloat | None = None
+    vibration_tolerance: PositiveFloat = 1e-3
+    whole_body: bool = False
+    gravity: Vector3 | None = None
+    ground: list[Ground] = []
+    contact_substeps: PositiveInt = Field(
+        default=1, description="rigid-body steps per analysis step (finer contact resolution)")
+
+    @model_validator(mode="after")
+    def _small(self):
+        if (self.become_rigid == "small") != (self.max_volume is not None):
+            raise ValueError("become_rigid 'small' goes with max_volume (and only it)")
+        return self
+
+
 # --- load curves --------------------------------------------------------------------------
 
 
@@ -499,5 +543,20 @@ class Case(Section):
     load_curves: dict[str, LoadCurve] = {}
     analysis: Analysis = StaticAnalysis()
     fracture: Fracture | None = None
+    fragments: Fragments | None = None
     reference: Reference | None = None
     output: Output = Output()
+
+    @model_validator(mode="after")
+    def _fragments(self):
+        f = self.fragments
+        if f is None:
+            return self
+        if self.analysis.type != "dynamic":
+            raise ValueError("fragments need a dynamic analysis (rigid bodies move in time)")
+        if f.whole_body and self.fracture is not None:
+            raise ValueError("fragments.whole_body makes the body rigid: it cannot fracture")
+        if not f.whole_body and self.fracture is None:
+            raise ValueError("fragments need a fracture section (pieces break free) or "
+                             "whole_body: true")
+        return self

@@ -83,21 +83,40 @@ def splits(points: np.ndarray, tets: np.ndarray, centroids: np.ndarray, s: Star,
     same-side tets joined through faces at the vertex keeps a face away from the vertex
     shared with the rest of the mesh. A group without one would come off as a loose piece
     of a few tets: a crack around a corner, not across the body."""
-    from scipy.sparse.csgraph import connected_components
-
-    around = s.incidence.indices[s.incidence.indptr[vertex]:s.incidence.indptr[vertex + 1]]
+    inc, adj = s.incidence, s.adjacency
+    around = inc.indices[inc.indptr[vertex]:inc.indptr[vertex + 1]]
     side = (centroids[around] - points[vertex]) @ normal < 0.0
     if not side.any() or side.all():
         return False
-    sub = s.adjacency[around][:, around].tocoo()
-    same = side[sub.row] == side[sub.col]
-    graph = sp.coo_matrix((np.ones(int(same.sum())), (sub.row[same], sub.col[same])),
-                          shape=(around.size, around.size))
-    n_groups, group = connected_components(graph, directed=False)
+    # the face-sharing pairs among the tets around the vertex (plain numpy: these graphs
+    # have a few dozen nodes, far below what sparse slicing pays off for)
+    degree = adj.indptr[around + 1] - adj.indptr[around]
+    row = np.repeat(np.arange(around.size), degree)
+    neighbour = adj.indices[np.concatenate([np.arange(a, b) for a, b in
+                                            zip(adj.indptr[around], adj.indptr[around + 1],
+                                                strict=True)])]
+    position = np.searchsorted(around, neighbour)
+    position = np.minimum(position, around.size - 1)
+    inside = around[position] == neighbour
+    i, j = row[inside], position[inside]
+    same = side[i] == side[j]
+    i, j = i[same], j[same]
+    # connected groups by label propagation (converges in at most around.size sweeps)
+    group = np.arange(around.size)
+    while True:
+        low = np.minimum(group[i], group[j])
+        new = group.copy()
+        np.minimum.at(new, i, low)
+        np.minimum.at(new, j, low)
+        new = new[new]
+        if np.array_equal(new, group):
+            break
+        group = new
     local = np.argmax(tets[around] == vertex, axis=1)
-    anchored = np.zeros(n_groups, dtype=bool)
+    anchored = np.zeros(around.size, dtype=bool)
     anchored[group[s.held[around, local]]] = True
-    return bool(anchored.all())
+    roots = np.unique(group)
+    return bool(anchored[roots].all())
 
 
 def tilt(normals: np.ndarray, angle: float, rng: np.random.Generator) -> np.ndarray:

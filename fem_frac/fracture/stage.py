@@ -53,8 +53,10 @@ class Batch:
     where: np.ndarray  # (sites, 3) reference position of each split vertex
 
 
-def protected_vertices(config: schema.Fracture, mesh: Mesh) -> np.ndarray:
-    """``(n_points,)`` bool: vertices of the ``protect`` entries, which never split."""
+def protected_vertices(config: schema.Fracture, mesh: Mesh, strict: bool = True) -> np.ndarray:
+    """``(n_points,)`` bool: vertices of the ``protect`` entries, which never split.
+    ``strict``: a box that selects no element is an error (in the case as given; later a
+    piece holding it may have left the mesh)."""
     mask = np.zeros(mesh.n_points, dtype=bool)
     centroids = None
     for i, p in enumerate(config.protect):
@@ -76,7 +78,7 @@ def protected_vertices(config: schema.Fracture, mesh: Mesh) -> np.ndarray:
                 centroids = mesh.points[mesh.tets].mean(axis=1)
             lo, hi = np.asarray(p.box.min), np.asarray(p.box.max)
             tets = np.flatnonzero(np.all((centroids >= lo) & (centroids <= hi), axis=1))
-            if tets.size == 0:
+            if tets.size == 0 and strict:
                 raise CaseError(("fracture", "protect", i, "box"), "selects no elements")
         mask[mesh.tets[tets].ravel()] = True
     return mask
@@ -102,16 +104,20 @@ class FractureStage:
         self.rebuild_seconds = 0.0
         self._prepare(current.model.mesh)
 
-    def _prepare(self, mesh: Mesh, split: np.ndarray | None = None) -> None:
-        """Per-topology caches: smoothing operator (updated near the ``split`` vertex
-        positions when given), protected vertices, fragments."""
-        if split is None:
+    def _prepare(self, mesh: Mesh, split: np.ndarray | None = None,
+                 smoothing=None) -> None:
+        """Per-topology caches: smoothing operator (given, or updated near the ``split``
+        vertex positions when given, or built), protected vertices, fragments."""
+        if smoothing is not None:
+            self.smoothing = smoothing
+        elif split is None:
             self.smoothing = smoothing_of(self.config, mesh)
         else:
             s = self.config.smoothing
             self.smoothing = update_operator(self.smoothing, mesh.points, mesh.tets, split,
                                              length=s.length, rings=s.rings, method=s.method)
-        self.protected = protected_vertices(self.config, mesh)
+        self.protected = protected_vertices(self.config, mesh, strict=split is None
+                                            and smoothing is None)
         self.star = star(mesh.tets, mesh.n_points)
         n, labels = connected_components(self.star.adjacency, directed=False)
         self.n_fragments, self.labels = int(n), labels.astype(np.int64)
@@ -121,6 +127,7 @@ class FractureStage:
         pattern.data[:] = 1.0
         self.debris_volume = float(np.median(pattern @ self.volumes))
         self.crack = crack_measures(mesh)
+        self.refused = np.zeros(mesh.n_points, dtype=bool)
 
     # -- the hook --------------------------------------------------------------------------
 
@@ -130,7 +137,9 @@ class FractureStage:
         regular = ledger  # the step on the uncracked mesh
         changed = False
         inserted = passes = 0
-        refused = np.zeros(self.current.model.mesh.n_points, dtype=bool)
+        # vertices whose split would shed debris stay refused until the mesh changes (the
+        # debris is a matter of geometry: the same sites would be tried and refused again)
+        refused = self.refused
         while passes < cfg.passes and inserted < cfg.max_insertions_per_step:
             limit = min(cfg.batch_size, cfg.max_insertions_per_step - inserted)
             t0 = time.perf_counter()
@@ -144,14 +153,14 @@ class FractureStage:
                 continue
             new = self.build(mesh)
             self._prepare(mesh, old.model.mesh.points[sites.vertices])
-            refused = transfer.transfer_nodal(refused)
+            refused = self.refused
             if not self.inertia:
                 self._check_supports(new, n)
             start = self.carry(start, old, new, transfer)  # the next pass starts from it
             self.current = new
             self.rebuild_seconds += time.perf_counter() - t0
             end, ledger, step_info = advance(new.stepper, start, start.t, end.t,
-                                             start_ledger, new.model.problem, self.law,
+                                             start_ledger, new.model.problem, new.law,
                                              new.ops, n)
             info = replace(step_info, iterations=info.iterations + step_info.iterations,
                            solves=info.solves + step_info.solves,
@@ -164,16 +173,33 @@ class FractureStage:
             inserted += len(sites)
             passes += 1
             changed = True
+        self.refused = refused
         if not changed:
             return end, ledger, info, None
         if not self.inertia:
             # the re-solved step's imbalance beyond the regular step's is the released energy
             ledger = replace(ledger, fracture=ledger.fracture - (ledger.error - regular.error))
         info = replace(info, insertions=inserted, passes=passes)
-        cur = self.current
         self.log(f"fracture   step {n}: {inserted} site(s) in {passes} pass(es), "
                  f"{self.crack.faces} crack faces, {self.n_fragments} fragment(s)")
-        return end, ledger, info, System(cur.model.problem, cur.ops, cur.stepper)
+        return end, ledger, info, self.system()
+
+    def adopt(self, mesh: Mesh, transfer: Transfer, state: State) -> State:
+        """Continue on ``mesh``, the current one less pieces that left it (``transfer``
+        from :func:`~fem_frac.fracture.topology.extract`): rebuild, and carry ``state``."""
+        old = self.current
+        new = self.build(mesh)
+        keep = transfer.element_map
+        # the pieces that left share no face with the rest: no neighbourhood reaches them
+        smoothing = self.smoothing[keep][:, keep].tocsr()
+        self._prepare(mesh, smoothing=smoothing)
+        state = self.carry(state, old, new, transfer)
+        self.current = new
+        return state
+
+    def system(self) -> System:
+        cur = self.current
+        return System(cur.model.problem, cur.ops, cur.stepper, cur.law)
 
     # -- parts -----------------------------------------------------------------------------
 

@@ -289,3 +289,35 @@ def open_crack(mesh: Mesh, vertices, normals, separate: bool = True) -> tuple[Me
         tets, later = _separate_tets(tets, node_map.size)
         node_map = node_map[later]
     return _rebuild(mesh, tets, node_map)
+
+
+def extract(mesh: Mesh, keep) -> tuple[Mesh, Transfer]:
+    """The mesh of the tets ``keep`` (bool ``(n_tets,)`` or ids) alone, vertices renumbered in
+    their old order: ``(mesh, Transfer)`` with ``node_map`` the old id of every kept vertex and
+    ``element_map`` the old id of every kept tet. Boundary groups keep the faces of kept tets
+    (every group face is exterior, so it has one tet); subdomains and curved edges follow."""
+    keep = np.asarray(keep)
+    ids = np.flatnonzero(keep) if keep.dtype == bool else np.sort(keep.astype(np.int64))
+    tets = np.asarray(mesh.tets, dtype=np.int64)[ids]
+    node_map = np.unique(tets)
+    new_id = np.full(mesh.n_points, -1, dtype=np.int64)
+    new_id[node_map] = np.arange(node_map.size)
+    kept_faces = facet_keys(tets[:, TET_FACES].reshape(-1, 3), mesh.n_points)
+    boundaries = {}
+    for name, tri in mesh.boundaries.items():
+        tri = np.asarray(tri, dtype=np.int64).reshape(-1, 3)
+        mine = np.isin(facet_keys(tri, mesh.n_points), kept_faces)
+        boundaries[name] = new_id[tri[mine]]
+    tet_new = np.full(mesh.n_tets, -1, dtype=np.int64)
+    tet_new[ids] = np.arange(ids.size)
+    subdomains = {k: tet_new[np.asarray(v, dtype=np.int64)][tet_new[np.asarray(v)] >= 0]
+                  for k, v in mesh.subdomains.items()}
+    edges, edge_points = mesh.edges, mesh.edge_points
+    if mesh.curved:
+        ok = np.all(new_id[mesh.edges] >= 0, axis=1)
+        edges, edge_points = new_id[mesh.edges[ok]], mesh.edge_points[ok]
+    new = Mesh(points=np.asarray(mesh.points)[node_map], tets=new_id[tets],
+               boundaries=boundaries, subdomains=subdomains, edges=edges,
+               edge_points=edge_points)
+    return new, Transfer(node_map, ids)
+

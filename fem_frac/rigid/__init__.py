@@ -1,0 +1,1 @@
+"""Rigid bodies: mass properties, motion, ground contact."""

@@ -1,0 +1,98 @@
+"""A piece of the mesh handed over to rigid-body motion (DESIGN §2, "hand-off").
+
+The finite-element piece (nodal positions ``x``, velocities ``v``, mass matrix ``M``) is
+replaced by a rigid body with the same linear momentum ``P = sum (M v)_a`` and the same
+angular momentum about its centre ``L = sum (x_a - X) x (M v)_a``: both conserved exactly by
+construction. Mass, centre and inertia come from the piece's tets exactly
+(:mod:`fem_frac.rigid.mass`), at the positions they have at hand-off, each tet keeping its
+reference mass. The kinetic energy of the vibration about the rigid motion and the strain
+energy leave with the finite elements: logged as ``vibration_energy``.
+
+The piece's shape is frozen at hand-off: a node's body-frame coordinates ``b`` stay fixed,
+its world position is ``X(t) + R(t) b``, and the output shows it through the point field
+``displacement = X + R b - reference position`` (Warp By Vector moves it).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..mesh.mesh import tet_volumes
+from .body import RigidBody, kinetic_energy, quaternion_from_matrix, rotation_matrix
+from .mass import mass_properties
+
+
+@dataclass(frozen=True, eq=False)
+class RigidFragment:
+    """A rigid body with the nodes and cells it is drawn with.
+
+    ``nodes (k, 3)``: reference positions of its scalar nodes (vertices, then P2 mid-edge
+    nodes); ``cells (e, 4 | 10)``: local node ids in VTK order; ``body_coords (k, 3)``:
+    the nodes in the body frame; ``cell_data``: the element fields frozen at hand-off;
+    ``fragment_id``: its id in the output; ``born``: the time of hand-off;
+    ``vibration_energy``: the energy that left with the finite elements."""
+
+    body: RigidBody
+    nodes: np.ndarray
+    cells: np.ndarray
+    body_coords: np.ndarray
+    fragment_id: int
+    born: float
+    vibration_energy: float = 0.0
+    cell_data: dict = field(default_factory=dict)
+
+    def world(self) -> np.ndarray:
+        """World positions ``(k, 3)`` of the nodes."""
+        return self.body.position + self.body_coords @ rotation_matrix(self.body.orientation).T
+
+    def displacement(self) -> np.ndarray:
+        return self.world() - self.nodes
+
+
+def contact_points(body_coords: np.ndarray) -> np.ndarray:
+    """The vertices of the convex hull of ``body_coords`` (all of them if degenerate): the
+    only points of a rigid body that can touch a plane first."""
+    from scipy.spatial import ConvexHull, QhullError
+
+    try:
+        return body_coords[ConvexHull(body_coords).vertices]
+    except (QhullError, ValueError):
+        return body_coords
+
+
+def rigid_piece(points: np.ndarray, tets: np.ndarray, nodes: np.ndarray, cells: np.ndarray,
+                x: np.ndarray, mv: np.ndarray, v: np.ndarray, density,
+                strain_energy: float = 0.0, fragment_id: int = 0, born: float = 0.0,
+                cell_data: dict | None = None) -> RigidFragment:
+    """The rigid fragment of a piece.
+
+    ``points (n, 3)``, ``tets (e, 4)``: the piece's reference vertices and tets (local ids);
+    ``nodes (k, 3)``: its reference scalar nodes (vertices first), ``cells (e, k_e)``;
+    ``x (k, 3)`` current node positions, ``v (k, 3)`` velocities and ``mv (k, 3)`` the
+    momentum ``M v`` of each node (the piece's rows of the mass matrix times ``v``);
+    ``density``: scalar or ``(e,)``, the reference density.
+    """
+    n = points.shape[0]
+    current = x[:n]  # vertices come first among the nodes
+    rho = np.broadcast_to(np.asarray(density, dtype=float), (tets.shape[0],))
+    # each tet keeps its reference mass: density scaled by the volume change
+    ratio = tet_volumes(points, tets) / tet_volumes(current, tets)
+    mp = mass_properties(current, tets, rho * ratio)
+    momentum = mv.sum(axis=0)
+    angular = np.cross(x - mp.center, mv).sum(axis=0)
+    body_coords = (x - mp.center) @ mp.axes
+    body = RigidBody(
+        mass=float(mp.mass),
+        inertia=np.asarray(mp.moments, dtype=float),
+        position=np.asarray(mp.center, dtype=float),
+        orientation=quaternion_from_matrix(mp.axes),
+        momentum=momentum,
+        angular_momentum=angular,
+        points=contact_points(body_coords),
+    )
+    finite_element_kinetic = 0.5 * float(np.sum(mv * v))
+    vibration = finite_element_kinetic + strain_energy - kinetic_energy(body)
+    return RigidFragment(body, np.asarray(nodes, dtype=float), np.asarray(cells),
+                         body_coords, fragment_id, born, vibration, cell_data or {})
