@@ -157,7 +157,7 @@ def _friction_impulse(k, f, radius):
     for _ in range(50):
         y = g / (w + sigma)
         norm = float(np.sqrt(y @ y))
-        step = (1.0 / norm - 1.0 / radius) * norm**3 / float(y @ (y / (w + sigma)))
+        step = (1.0 / radius - 1.0 / norm) * norm**3 / float(y @ (y / (w + sigma)))
         sigma = max(sigma + step, 0.0)
         if abs(step) <= 1e-15 * (sigma + w[-1]):
             break

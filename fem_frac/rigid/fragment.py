@@ -3,9 +3,10 @@
 The finite-element piece (nodal positions ``x``, velocities ``v``, mass matrix ``M``) is
 replaced by a rigid body with the same linear momentum ``P = sum (M v)_a`` and the same
 angular momentum about its centre ``L = sum (x_a - X) x (M v)_a``: both conserved exactly by
-construction. Mass, centre and inertia come from the piece's tets exactly
-(:mod:`fem_frac.rigid.mass`), at the positions they have at hand-off, each tet keeping its
-reference mass. The kinetic energy of the vibration about the rigid motion and the strain
+construction. Mass and inertia come from the piece's tets exactly
+(:mod:`fem_frac.rigid.mass`, closed form), at the positions they have at hand-off, each tet
+keeping its reference mass; the centre is the finite-element piece's (``sum (M x) / m``,
+the tets' own centroid for P1, and for P2 the centroid with its displaced edge nodes). The kinetic energy of the vibration about the rigid motion and the strain
 energy leave with the finite elements: logged as ``vibration_energy``.
 
 The piece's shape is frozen at hand-off: a node's body-frame coordinates ``b`` stay fixed,
@@ -65,14 +66,18 @@ def contact_points(body_coords: np.ndarray) -> np.ndarray:
 def rigid_piece(points: np.ndarray, tets: np.ndarray, nodes: np.ndarray, cells: np.ndarray,
                 x: np.ndarray, mv: np.ndarray, v: np.ndarray, density,
                 strain_energy: float = 0.0, fragment_id: int = 0, born: float = 0.0,
-                cell_data: dict | None = None) -> RigidFragment:
+                cell_data: dict | None = None, mx: np.ndarray | None = None
+                ) -> RigidFragment:
     """The rigid fragment of a piece.
 
     ``points (n, 3)``, ``tets (e, 4)``: the piece's reference vertices and tets (local ids);
     ``nodes (k, 3)``: its reference scalar nodes (vertices first), ``cells (e, k_e)``;
     ``x (k, 3)`` current node positions, ``v (k, 3)`` velocities and ``mv (k, 3)`` the
     momentum ``M v`` of each node (the piece's rows of the mass matrix times ``v``);
-    ``density``: scalar or ``(e,)``, the reference density.
+    ``density``: scalar or ``(e,)``, the reference density; ``mx (k, 3)``: the first
+    moment ``M x`` of each node, whose sum over the mass is the centre of the
+    finite-element piece (P2: with its curved, displaced edges); without it the centre of
+    the straight tets through the displaced vertices (the same for P1).
     """
     n = points.shape[0]
     current = x[:n]  # vertices come first among the nodes
@@ -80,13 +85,14 @@ def rigid_piece(points: np.ndarray, tets: np.ndarray, nodes: np.ndarray, cells: 
     # each tet keeps its reference mass: density scaled by the volume change
     ratio = tet_volumes(points, tets) / tet_volumes(current, tets)
     mp = mass_properties(current, tets, rho * ratio)
+    center = mp.center if mx is None else mx.sum(axis=0) / mp.mass
     momentum = mv.sum(axis=0)
-    angular = np.cross(x - mp.center, mv).sum(axis=0)
-    body_coords = (x - mp.center) @ mp.axes
+    angular = np.cross(x - center, mv).sum(axis=0)
+    body_coords = (x - center) @ mp.axes
     body = RigidBody(
         mass=float(mp.mass),
         inertia=np.asarray(mp.moments, dtype=float),
-        position=np.asarray(mp.center, dtype=float),
+        position=np.asarray(center, dtype=float),
         orientation=quaternion_from_matrix(mp.axes),
         momentum=momentum,
         angular_momentum=angular,

@@ -97,18 +97,23 @@ class RigidStage:
             return end, ledger, info, None
         mesh = current.model.mesh
         leaving = np.zeros(mesh.n_tets, dtype=bool)
-        handed = 0.0
+        kinetic = strain = 0.0
         for elements in pieces:
             f = self.hand_off(current, end, elements)
             leaving[elements] = True
             self.fragments.append(f)
             self.vibration_energy += f.vibration_energy
-            handed += self.piece_energy(current, end, elements)
+            k, e = self.piece_energy(current, end, elements)
+            kinetic, strain = kinetic + k, strain + e
             self.log(f"fragments  step {n}: a piece of {len(elements)} elements is rigid "
                      f"(mass {f.body.mass:.4g}; vibration energy {f.vibration_energy:.3g} "
                      "removed)")
+        handed = kinetic + strain
         self.handed_energy += handed
-        ledger = replace(ledger, handed_off=ledger.handed_off + handed)
+        # the finite elements' energies of this step lose what the pieces took along
+        ledger = replace(ledger, kinetic=ledger.kinetic - kinetic,
+                         elastic=ledger.elastic - strain,
+                         handed_off=ledger.handed_off + handed)
         if leaving.all():
             self.only = True
             raise AllRigid(n, end, ledger, info)
@@ -143,14 +148,15 @@ class RigidStage:
             out.append(elements)
         return out
 
-    def piece_energy(self, current, state: State, elements: np.ndarray) -> float:
+    def piece_energy(self, current, state: State, elements: np.ndarray
+                     ) -> tuple[float, float]:
         """Kinetic and strain energy of a piece in the finite elements."""
         dofs = self._dofs(current, elements)
         v = state.v
         kinetic = 0.5 * float(v[dofs] @ (current.ops.mass @ v)[dofs])
         weights = np.zeros_like(current.ops.weights)
         weights[elements] = current.ops.weights[elements]
-        return kinetic + current.law.elastic_energy(state.stress, weights)
+        return kinetic, current.law.elastic_energy(state.stress, weights)
 
     @staticmethod
     def _nodes(current, elements: np.ndarray) -> np.ndarray:
@@ -174,6 +180,8 @@ class RigidStage:
         v = state.v.reshape(-1, 3)[nodes]
         mv = (current.ops.mass @ state.v).reshape(-1, 3)[nodes]
         x = space.node_points[nodes] + u
+        positions = (space.node_points + state.u.reshape(-1, 3)).ravel()
+        mx = (current.ops.mass @ positions).reshape(-1, 3)[nodes]
         density = current.model.materials.density
         rho = density if np.ndim(density) == 0 else np.asarray(density)[elements]
         weights = np.zeros_like(current.ops.weights)
@@ -186,4 +194,4 @@ class RigidStage:
             frozen["equivalent_plastic_strain"] = (alpha * dx).sum(axis=1) / dx.sum(axis=1)
         fid = (max((f.fragment_id for f in self.fragments), default=-1) + 1)
         return rigid_piece(points, tets, space.node_points[nodes], cells, x, mv, v, rho,
-                           strain, fid, state.t, frozen)
+                           strain, fid, state.t, frozen, mx)
