@@ -6,8 +6,9 @@ angular momentum about its centre ``L = sum (x_a - X) x (M v)_a``: both conserve
 construction. Mass and inertia come from the piece's tets exactly
 (:mod:`fem_frac.rigid.mass`, closed form), at the positions they have at hand-off, each tet
 keeping its reference mass; the centre is the finite-element piece's (``sum (M x) / m``,
-the tets' own centroid for P1, and for P2 the centroid with its displaced edge nodes). The kinetic energy of the vibration about the rigid motion and the strain
-energy leave with the finite elements: logged as ``vibration_energy``.
+the tets' own centroid for P1, and for P2 the centroid with its displaced edge nodes).
+The kinetic energy of the vibration about the rigid motion and the strain energy leave
+with the finite elements: logged as ``vibration_energy``.
 
 The piece's shape is frozen at hand-off: a node's body-frame coordinates ``b`` stay fixed,
 its world position is ``X(t) + R(t) b``, and the output shows it through the point field
