@@ -1,41 +1,37 @@
 """Contact of a rigid body with fixed planes by impulses (DESIGN §2, "Fragments and rigid bodies").
 
-One step of :func:`step`:
+:func:`step`, one time step: kick (``P += m g dt``); find the vertices inside a plane or
+reaching it within the step; impulses (:func:`resolve`); drift (torque-free free flight of
+``motion.py`` with the new momenta); projection (a body left inside a plane is moved out
+along the normal, velocities kept, so no kinetic energy is added: no Baumgarte bias). A step
+with no contact is the exact parabola of ``free_flight``. Vertices approaching faster than
+``v_rest = 2 |g| dt`` (twice what gravity adds in a step) bounce: the step is then cut at
+their linearly predicted time of impact, so the rebound starts on the plane (bounce heights
+right to O(g dt^2), where bouncing at the step boundary is off by O(|v| dt) and lets
+micro-bounces pump energy). Slower vertices rest: e = 0 and the target ``v_n >= -gap / dt``
+(speculative contact), so a body settles exactly onto the plane, without jitter.
 
-1. kick: ``P += m g dt`` (gravity over the step);
-2. contacts: the vertices that penetrate a plane, or would within the step at their present
-   velocity, get a normal and a Coulomb friction impulse (:func:`resolve`);
-3. drift: torque-free free flight over dt with the new momenta (exact rotation splitting of
-   ``motion.py``); a step with no contact is instead the exact parabola of ``free_flight``;
-4. projection: a body left penetrating a plane is moved out along the normal. Velocities are
-   not touched, so this adds no kinetic energy (no Baumgarte velocity bias).
+:func:`resolve` uses Poisson's restitution in two phases, not Gauss-Seidel aimed at Newton's
+``v_n+ = -e v_n-``:
 
-Impulses (:func:`resolve`) follow Poisson's restitution, in two phases, rather than aiming
-Gauss-Seidel at the Newton target ``v_n+ = -e v_n-``:
+- compression: sequential impulses (block Gauss-Seidel over the vertices, accumulated and
+  clamped per vertex as in Catto's: normal >= 0, friction in the Coulomb disc
+  ``|lambda_t| <= mu lambda_n``) with the body's effective mass ``J M^-1 J^T``, rows
+  ``[d, r x d]``, until the normal velocities reach their targets;
+- restitution: e times the compression impulse is applied again.
 
-- compression: sequential (Gauss-Seidel) impulses over the contact points, accumulated and
-  clamped per point (Catto's sequential impulses: normal >= 0, friction in the Coulomb disc
-  ``|lambda_t| <= mu lambda_n``), until the normal velocities reach their targets, using the
-  body's effective mass at each point (``J M^-1 J^T``, rows ``[d, r x d]``);
-- restitution: the compression impulse of each bouncing point, times e, is applied again.
-
-Why Poisson: with a uniform e the energy after the impact is provably not more than before
-for any e <= 1, friction and several simultaneous contacts included (the kinetic energy after
-compression is less than before by at least ``lambda^T A lambda / 2``, and the restitution
-impulse adds back ``e^2`` times that), whereas Newton's law at several points can gain energy.
-For a single frictionless point the two laws coincide. As a guard against unconverged
-iterations and mixed e, a restitution that would raise the kinetic energy is scaled down.
-
-Points approaching slower than ``v_rest = 2 |g| dt`` (twice what gravity adds in one step)
-are resting: e = 0 there, and their target is ``v_n >= -gap / dt`` (speculative contact), so a
-body settles exactly onto the plane without micro-bounces. Faster points bounce from where
-they are at the step boundary: the impact is not located inside the step, which shifts the
-rebound by at most one step of travel, |v| dt.
+Why: with one e the kinetic energy cannot rise for any e <= 1, friction and several contacts
+included. Compression lowers it by at least ``lambda.A.lambda / 2`` (each friction impulse
+opposes the sliding it leaves, and ``lambda_n v_n = 0``), restitution adds back ``e^2`` of
+that. Newton's law at several vertices can gain energy. A guard scales down a restitution
+that would (only round-off with one e; mixed e, resting and bouncing vertices, need it), and
+a last inelastic pass stops vertices that another's rebound drives into the plane.
 
 Not handled: contact between bodies (fragments pass through each other), contact with the
 finite-element mesh, curved or finite obstacles (planes are infinite), rolling and spinning
-resistance, static and kinetic friction as different coefficients, and contact on edges or
-faces between the given vertices (a body touches a plane only at its ``points``).
+resistance, distinct static and kinetic friction, friction in the last inelastic pass.
+A body touches a plane only at its ``points``; for the vertices of a convex hull that is
+complete, since a convex body first meets a plane at a vertex.
 """
 
 from __future__ import annotations
@@ -44,10 +40,11 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from .body import RigidBody, inverse_inertia_world, kinetic_energy, rotation_matrix
+from .body import RigidBody, inverse_inertia_world, rotation_matrix
 from .motion import free_flight
 
-# Gauss-Seidel sweeps: stop when no impulse changes by more than this fraction of the largest.
+# Gauss-Seidel: stop when a sweep changes no contact velocity by more than this fraction of
+# the largest velocity before the impulses.
 _TOLERANCE = 1e-13
 _ITERATIONS = 200
 
@@ -67,12 +64,9 @@ class Plane:
 
     def __post_init__(self):
         n = np.asarray(self.normal, dtype=float)
-        if not np.isclose(np.linalg.norm(n), 1.0, rtol=1e-9):
-            raise ValueError(f"plane normal must be a unit vector, got {n}")
-        if not 0.0 <= self.restitution <= 1.0:
-            raise ValueError(f"restitution must be in [0, 1], got {self.restitution}")
-        if self.friction < 0.0:
-            raise ValueError(f"friction must be >= 0, got {self.friction}")
+        if not (np.isclose(n @ n, 1.0, rtol=1e-9) and 0.0 <= self.restitution <= 1.0
+                and self.friction >= 0.0):
+            raise ValueError(f"need a unit normal, restitution in [0, 1], friction >= 0: {self}")
         object.__setattr__(self, "normal", n)
         object.__setattr__(self, "point", np.asarray(self.point, dtype=float))
 
@@ -138,11 +132,10 @@ def _friction_impulse(k, f, radius):
     """(2,) tangential impulse ``x`` minimizing ``x.k.x / 2 + f.x`` over ``|x| <= radius``.
 
     k: (2, 2) tangential effective mass (inverse), SPD; f: (2,) tangential velocity without
-    this friction. This is the kinetic energy over the Coulomb disc: inside, the point sticks
-    (``x = -k^-1 f``); on the rim it slides, with ``k x + f = -sigma x``: the friction opposes
-    the sliding velocity after the impulse (maximum dissipation). A radial clamp of the
-    sticking impulse, or friction along ``-f``, misses this minimum when ``k`` is anisotropic
-    (an arm off the centre) and stalls Gauss-Seidel short of sticking.
+    this friction: the kinetic energy over the Coulomb disc. Inside, the point sticks; on the
+    rim it slides, ``k x + f = -sigma x``: friction opposes the sliding after the impulse
+    (maximum dissipation). A radial clamp of the sticking impulse, or friction along ``-f``,
+    misses this minimum when ``k`` is anisotropic and stalls Gauss-Seidel short of sticking.
     """
     x = -np.linalg.solve(k, f)
     if x @ x <= radius * radius:
@@ -199,6 +192,20 @@ def _apply(body: RigidBody, jac: np.ndarray, lam: np.ndarray) -> RigidBody:
                    angular_momentum=body.angular_momentum + delta[3:])
 
 
+def _restitution_scale(a, b, lam, rebound) -> float:
+    """Largest s in [0, 1] with the kinetic energy after ``lam + s rebound`` not above before.
+
+    The change of kinetic energy by an impulse x (3c,) is ``x.b + x.a.x / 2``, exactly.
+    """
+    loss = -(lam @ b + 0.5 * lam @ a @ lam)  # >= 0: the compression phase dissipates
+    g, h = rebound @ (b + a @ lam), 0.5 * rebound @ a @ rebound
+    if g + h <= loss:
+        return 1.0
+    if loss <= 0.0 or h <= 0.0:
+        return 0.0
+    return float(min(max((-g + np.sqrt(g * g + 4.0 * h * loss)) / (2.0 * h), 0.0), 1.0))
+
+
 def resolve(body: RigidBody, contacts: Contacts, dt: float, v_rest: float) -> RigidBody:
     """The body with contact impulses applied to its momenta; position and orientation kept.
 
@@ -214,26 +221,19 @@ def resolve(body: RigidBody, contacts: Contacts, dt: float, v_rest: float) -> Ri
     omega = inv_mass[3:, 3:] @ body.angular_momentum
     b = jac @ np.concatenate([body.momentum / body.mass, omega])
     a = jac @ inv_mass @ jac.T
-    approach = -b[0::3]
-    bouncing = approach > v_rest
+    bouncing = contacts.approach > v_rest
     target = np.where(bouncing, 0.0, -np.maximum(contacts.gap, 0.0) / dt)
     lam = _sequential_impulses(a, b, target, contacts.friction)
-    compressed = _apply(body, jac, lam)
     e = np.repeat(np.where(bouncing, contacts.restitution, 0.0), 3)
     if not np.any(e):
-        return compressed
-    rebound = _apply(compressed, jac, e * lam)
-    before, after = kinetic_energy(body), kinetic_energy(rebound)
-    if after <= before:
-        return rebound
-    # guard: restitution s * e * lam with s in [0, 1] chosen so that the energy is not raised;
-    # the energy is quadratic in s: T(s) = T_c + s g + s^2 h
-    t_c = kinetic_energy(compressed)
-    h = after - t_c - float((e * lam) @ (jac @ np.concatenate(
-        [compressed.momentum / body.mass, inv_mass[3:, 3:] @ compressed.angular_momentum])))
-    g = after - t_c - h
-    s = 0.0 if t_c >= before or h <= 0 else (-g + np.sqrt(g * g + 4 * h * (before - t_c))) / (2 * h)
-    return _apply(compressed, jac, min(max(s, 0.0), 1.0) * e * lam)
+        return _apply(body, jac, lam)
+    # guard: with a uniform e the scale is 1 to round-off (the proof in the module docstring)
+    lam = lam + _restitution_scale(a, b, lam, e * lam) * e * lam
+    # restitution at one vertex can drive another into the plane (Poisson's law at several
+    # points); a last inelastic, frictionless pass stops that. Each of its updates minimizes
+    # the kinetic energy over one impulse, so it cannot add energy
+    lam = lam + _sequential_impulses(a, b + a @ lam, target, np.zeros_like(target))
+    return _apply(body, jac, lam)
 
 
 def project(body: RigidBody, planes, sweeps: int = 2) -> RigidBody:

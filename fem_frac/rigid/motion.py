@@ -21,8 +21,9 @@ is second order, time reversible and symplectic (Lie-Poisson), so
   exactly): it oscillates, it does not drift;
 - the intermediate-axis (Dzhanibekov) flips come at the right times, to O(dt^2).
 
-Explicit gyroscopic updates (``omega += dt I^-1 (I omega x omega)``) gain energy every step and
-one-step implicit Euler loses it; neither keeps the flips (tests/test_rigid_motion.py).
+Not used: explicit gyroscopic updates (``omega += dt I^-1 (I omega x omega)``) gain energy at
+every step (|L| grows by a factor 1 + O(dt^2) a step; tests/test_rigid_motion.py shows the
+drift) and one-step implicit Euler loses it.
 """
 
 from __future__ import annotations
