@@ -34,6 +34,7 @@ def make_plan(case: Case) -> list[Stage]:
         "max_principal_stress" + (
             ", plastic_strain, equivalent_plastic_strain" if case.plasticity else "") + (
             ", fragment_id, smoothed_max_principal_stress" if case.fracture else "") + (
+            ", rigid" if case.fragments else "") + (
             "; crack surface series" if case.fracture and case.output.crack_surface else "") \
         + "; history.csv, summary.json"
     return [
@@ -45,14 +46,25 @@ def make_plan(case: Case) -> list[Stage]:
             "point(s) per tet",
         ),
         Stage("loads", True, loads),
-        Stage("stiffness", True, "isotropic linear elasticity, assembled once"),
-        _mass(analysis),
-        Stage("solve", True, _solve(analysis)),
+        *_finite_elements(case),
         _plasticity(case),
         _fracture(case),
         _fragments(case),
         Stage("output", True, fields + _cadence(analysis)),
     ]
+
+
+def _finite_elements(case: Case) -> list[Stage]:
+    analysis = case.analysis
+    if case.fragments is not None and case.fragments.whole_body:
+        grid = time_grid(analysis)
+        return [Stage("stiffness", False, "the body is rigid"),
+                Stage("mass", True, _mass(analysis).detail + ", for the momenta at hand-off"),
+                Stage("solve", True, f"rigid-body motion, {grid.steps} steps of {grid.dt:.4g} "
+                      f"to t = {grid.t_end:.4g}: gravity exact, torque-free rotation by exact "
+                      "principal-axis rotations, ground contact by impulses")]
+    return [Stage("stiffness", True, "isotropic linear elasticity, assembled once"),
+            _mass(analysis), Stage("solve", True, _solve(analysis))]
 
 
 def _mass(analysis) -> Stage:
@@ -124,10 +136,28 @@ def _fracture(case: Case) -> Stage:
 
 
 def _fragments(case: Case) -> Stage:
+    f = case.fragments
+    if f is not None and f.whole_body:
+        return Stage("fragments", True, "the whole body is one rigid body from the start "
+                     "(exact mass properties; no finite-element solve)" + _ground(f))
     if case.fracture is None:
         return Stage("fragments", False, "not requested")
-    return Stage("fragments", True, "connected components over shared faces after every "
-                 "insertion (fragment_id, count in history.csv); free pieces stay deformable")
+    text = ("connected components over shared faces after every insertion (fragment_id, "
+            "count in history.csv); ")
+    if f is None or f.become_rigid == "never":
+        return Stage("fragments", True, text + "free pieces stay deformable")
+    rule = {"all": "every free piece", "small": f"free pieces up to volume {f.max_volume}",
+            "settled": f"free pieces once their vibration is below {f.vibration_tolerance:g} "
+                       "of their rigid kinetic energy"}[f.become_rigid]
+    return Stage("fragments", True, text + f"{rule} becomes a rigid body" + _ground(f))
+
+
+def _ground(f) -> str:
+    if not f.ground:
+        return "; no ground"
+    return "; " + ", ".join(f"ground through {list(g.point)} normal {list(g.normal)} "
+                            f"(restitution {g.restitution:g}, friction {g.friction:g})"
+                            for g in f.ground)
 
 
 def _cadence(analysis) -> str:

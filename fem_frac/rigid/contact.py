@@ -137,8 +137,11 @@ def _friction_impulse(k, f, radius):
     (maximum dissipation). A radial clamp of the sticking impulse, or friction along ``-f``,
     misses this minimum when ``k`` is anisotropic and stalls Gauss-Seidel short of sticking.
     """
-    x = -np.linalg.solve(k, f)
-    if x @ x <= radius * radius:
+    # 2 x 2 by hand: numpy.linalg's per-call overhead is most of a contact step otherwise
+    (k00, k01), (k10, k11) = k
+    det = k00 * k11 - k01 * k10
+    x = np.array([k01 * f[1] - k11 * f[0], k10 * f[0] - k00 * f[1]]) / det
+    if x[0] * x[0] + x[1] * x[1] <= radius * radius:
         return x
     if radius <= 0.0:
         return np.zeros(2)

@@ -28,6 +28,10 @@ from .contact import Plane, step
 from .fragment import RigidFragment, rigid_piece
 
 
+# Steps at rest on the ground after which a rigid body sleeps (see RigidStage.move).
+SLEEP_STEPS = 20
+
+
 class AllRigid(Exception):  # noqa: N818 (a signal, not an error)
     """Every piece left the finite elements after step ``step``: the rest of the run is
     rigid bodies only."""
@@ -61,20 +65,37 @@ class RigidStage:
         self.vibration_energy = 0.0  # removed at hand-offs, in all
         self.handed_energy = 0.0  # kinetic + strain energy the pieces took along
         self.only = False  # no finite elements left
+        self._quiet: list[int] = []  # steps each body has rested
 
     # -- rigid motion ----------------------------------------------------------------------
 
     def move(self, t0: float, t1: float) -> None:
-        """Advance every rigid body from ``t0`` to ``t1``."""
+        """Advance every rigid body from ``t0`` to ``t1``.
+
+        A body that has rested on the ground for ``SLEEP_STEPS`` steps (kinetic energy below
+        what one step of free fall from rest gives it) sleeps: nothing can wake it (no
+        body-body contact, fixed planes, constant gravity), so it is no longer stepped."""
         k = self.config.contact_substeps
         h = (t1 - t0) / k
+        quiet = 0.5 * float(self.gravity @ self.gravity) * h * h
         moved = []
-        for f in self.fragments:
+        for i, f in enumerate(self.fragments):
+            if self.quiet[i] >= SLEEP_STEPS:
+                moved.append(f)
+                continue
             body = f.body
             for _ in range(k):
                 body = step(body, h, self.gravity, self.planes)
+            resting = self.planes and quiet > 0 and kinetic_energy(body) < quiet * body.mass
+            self.quiet[i] = self.quiet[i] + 1 if resting else 0
             moved.append(replace(f, body=body))
         self.fragments = moved
+
+    @property
+    def quiet(self) -> list[int]:
+        while len(self._quiet) < len(self.fragments):
+            self._quiet.append(0)
+        return self._quiet
 
     def energies(self, reference: float = 0.0) -> tuple[float, float]:
         """Kinetic energy and gravitational potential energy (zero at the origin) of all
