@@ -38,6 +38,21 @@ def run_fracture(case_dict: dict, case_dir: Path = Path("."), observe=None):
     return setup, stage, state, ledger, counters
 
 
+def run_fragments(case_dict: dict, case_dir: Path = Path("."), observe=None):
+    """``(setup, fracture stage, rigid stage, final state, ledger)`` of a case with
+    fragments."""
+    from fem_frac.driver import fracture_stage, rigid_stage
+
+    case = Case.model_validate(case_dict)
+    timer = StageTimer()
+    setup = prepare(case, case_dir, timer)
+    fracture = fracture_stage(setup, timer)
+    rigid = rigid_stage(setup, fracture)
+    state, ledger, _ = simulate(setup, timer, observe or (lambda *a: None),
+                                fracture=fracture, rigid=rigid)
+    return setup, fracture, rigid, state, ledger
+
+
 def write_case(path: Path, case_dict: dict) -> Path:
     """Write ``case_dict`` as a YAML case file (block style, one key per line)."""
     from ruamel.yaml import YAML

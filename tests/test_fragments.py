@@ -80,3 +80,28 @@ def test_spinning_brick_flips_and_keeps_its_angular_momentum(tmp_path):
     h = read_history(out / "history.csv")
     k = np.array(h["rigid_kinetic_energy"])
     assert np.abs(k / k[0] - 1).max() < (6.0 * 0.005) ** 2 / 12
+
+
+@pytest.mark.parametrize("rule,expect", [
+    ({"become_rigid": "all"}, "some"),
+    ({"become_rigid": "never"}, "none"),
+    ({"become_rigid": "small", "max_volume": 1e-6}, "none"),  # every piece is larger
+    ({"become_rigid": "small", "max_volume": 1.0}, "some"),
+    ({"become_rigid": "settled", "vibration_tolerance": 1e-12}, "none"),  # still ringing
+    ({"become_rigid": "settled", "vibration_tolerance": 1e6}, "some"),
+])
+def test_which_free_pieces_become_rigid(rule, expect):
+    """The first 10 steps of the breaking beam (it breaks in steps 1-4) under each rule."""
+    from ruamel.yaml import YAML
+
+    from solve import run_fragments
+
+    case = YAML(typ="safe").load((CASES / "breaking_beam.yaml").read_text())
+    case["fragments"] = {**rule, "ground": case["fragments"]["ground"]}
+    case["analysis"]["steps"] = 10
+    _, fracture, rigid, _, ledger = run_fragments(case, CASES)
+    assert (len(rigid.fragments) > 0) == (expect == "some")
+    # the beam broke either way; pieces left deformable stay in the finite elements
+    assert fracture.crack.faces > 0
+    if expect == "none":
+        assert fracture.n_fragments > 1 and ledger.handed_off == 0.0

@@ -27,7 +27,6 @@ from .body import kinetic_energy
 from .contact import Plane, step
 from .fragment import RigidFragment, rigid_piece
 
-
 # Steps at rest on the ground after which a rigid body sleeps (see RigidStage.move).
 SLEEP_STEPS = 20
 
