@@ -194,9 +194,26 @@ class Setup:
                               self.law)
 
 
+def check_stages(case: Case) -> None:
+    """Sections that only make sense together (located at the section that asks)."""
+    f = case.fragments
+    if f is None:
+        return
+    if case.analysis.type != "dynamic":
+        raise CaseError(("fragments",), "fragments need a dynamic analysis (rigid bodies "
+                        "move in time)")
+    if f.whole_body and case.fracture is not None:
+        raise CaseError(("fragments", "whole_body"), "whole_body makes the body rigid: it "
+                        "cannot fracture (drop one of the two)")
+    if not f.whole_body and case.fracture is None:
+        raise CaseError(("fragments",), "fragments need a fracture section (pieces break "
+                        "free) or whole_body: true")
+
+
 def prepare(case: Case, case_dir: Path, timer: StageTimer, log: Log = quiet) -> Setup:
     """Everything before the first step; every input error is raised here."""
     analysis = case.analysis
+    check_stages(case)
     check_reference(case)
     model = build_model(case, case_dir, timer, log)
     space, problem = model.space, model.problem

@@ -10,7 +10,7 @@ import numpy as np
 from . import __version__
 from .config.loader import Source
 from .config.schema import Case, DynamicAnalysis
-from .driver import build_model
+from .driver import build_model, check_stages
 from .errors import CaseError
 from .fem.loads import facet_basis
 from .mesh.build import mesh_file_path
@@ -31,6 +31,7 @@ def _area(space, triples: np.ndarray) -> float:
 def check_report(case: Case, source: Source) -> str:
     """Validate, mesh and resolve supports and loads; describe the result. No solve."""
     timer = StageTimer()
+    check_stages(case)
     model = build_model(case, source.path.parent, timer)
     mesh, space = model.mesh, model.space
     angles = min_dihedral_angles(mesh.points, mesh.tets)

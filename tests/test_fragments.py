@@ -105,3 +105,30 @@ def test_which_free_pieces_become_rigid(rule, expect):
     assert fracture.crack.faces > 0
     if expect == "none":
         assert fracture.n_fragments > 1 and ledger.handed_off == 0.0
+
+
+@pytest.mark.parametrize("edit,key,message", [
+    (lambda c: c["analysis"].update(type="quasi_static", integrator=None), "fragments",
+     "fragments need a dynamic analysis"),
+    (lambda c: c["fragments"].update(become_rigid="small"), "fragments",
+     "become_rigid 'small' goes with max_volume"),
+    (lambda c: c["fragments"].update(whole_body=True), "fragments.whole_body",
+     "whole_body makes the body rigid"),
+    (lambda c: c["fragments"]["ground"][0].update(restitution=1.5),
+     "fragments.ground[0].restitution", "must be <= 1"),
+])
+def test_bad_fragments_sections_are_located(tmp_path, capsys, edit, key, message):
+    from ruamel.yaml import YAML
+
+    from solve import write_case
+
+    case = YAML(typ="safe").load((CASES / "breaking_beam.yaml").read_text())
+    edit(case)
+    case["analysis"] = {k: v for k, v in case["analysis"].items() if v is not None}
+    if case["analysis"]["type"] == "quasi_static":
+        case["analysis"] = {"type": "quasi_static", "steps": 2}
+    path = write_case(tmp_path / "bad.yaml", case)
+    assert main(["check", str(path)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.startswith(f"error: {path}:") and f": {key}:" in err and message in err, err
+    assert len(err.splitlines()) == 1

@@ -546,17 +546,3 @@ class Case(Section):
     fragments: Fragments | None = None
     reference: Reference | None = None
     output: Output = Output()
-
-    @model_validator(mode="after")
-    def _fragments(self):
-        f = self.fragments
-        if f is None:
-            return self
-        if self.analysis.type != "dynamic":
-            raise ValueError("fragments need a dynamic analysis (rigid bodies move in time)")
-        if f.whole_body and self.fracture is not None:
-            raise ValueError("fragments.whole_body makes the body rigid: it cannot fracture")
-        if not f.whole_body and self.fracture is None:
-            raise ValueError("fragments need a fracture section (pieces break free) or "
-                             "whole_body: true")
-        return self
