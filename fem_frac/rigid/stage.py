@@ -96,13 +96,13 @@ class RigidStage:
             self._quiet.append(0)
         return self._quiet
 
-    def energies(self, reference: float = 0.0) -> tuple[float, float]:
+    def energies(self) -> tuple[float, float]:
         """Kinetic energy and gravitational potential energy (zero at the origin) of all
         rigid bodies."""
         kinetic = sum(kinetic_energy(f.body) for f in self.fragments)
         potential = -sum(f.body.mass * float(self.gravity @ f.body.position)
                          for f in self.fragments)
-        return kinetic, potential - reference
+        return kinetic, potential
 
     # -- the hook --------------------------------------------------------------------------
 
