@@ -511,9 +511,12 @@ def write_step(writer: SeriesWriter, space: Space, state: State, dynamic: bool,
     if rigid is not None:
         from .rigid.output import with_rigid_fragments
 
-        first_id = 0 if fracture is None or rigid.only else fracture.n_fragments
+        # rigid bodies keep their ids (order of hand-off) from frame to frame; the
+        # deformable pieces are numbered after them
+        if "fragment_id" in cell_data:
+            cell_data["fragment_id"] = cell_data["fragment_id"] + len(rigid.fragments)
         points, cells, point_data, cell_data = with_rigid_fragments(
-            rigid.fragments, points, cells, point_data, cell_data, first_id,
+            rigid.fragments, points, cells, point_data, cell_data,
             none_deformable=rigid.only)
     writer.write(state.t, points, (kind, cells), point_data, cell_data)
 

@@ -73,8 +73,8 @@ def check_cracks_open(out: Path, name: str, summary: dict, history: dict, first,
     assert max(history["fragments"]) == f["fragments"]
     assert len(last.points) > len(first.points)
     ids = last.cell_data["fragment_id"][0]
-    if "rigid" in last.cell_data:  # rigid fragments are numbered after the deformable ones
-        ids = ids[last.cell_data["rigid"][0] == 0]
+    if "rigid" in last.cell_data:  # deformable pieces are numbered after the rigid bodies
+        ids = ids[last.cell_data["rigid"][0] == 0] - summary["fragments"]["rigid_bodies"]
     assert ids.min() == 0 and ids.max() == f["fragments"] - 1
     # group points by reference position: the copies of a split vertex
     _, group, count = np.unique(np.round(last.points, 12), axis=0, return_inverse=True,
@@ -107,7 +107,8 @@ def check_rigid_fragments(case: Path, summary: dict, history: dict, last) -> Non
     rigid = last.cell_data["rigid"][0] == 1
     assert rigid.any()
     ids = last.cell_data["fragment_id"][0]
-    assert len(np.unique(ids[rigid])) == f["rigid_bodies"]
+    # rigid bodies are 0 .. n - 1 in order of hand-off
+    np.testing.assert_array_equal(np.unique(ids[rigid]), np.arange(f["rigid_bodies"]))
     spec = YAML(typ="safe").load(case.read_text())
     nodes = np.unique(last.cells[0].data[rigid])
     x = last.points[nodes] + last.point_data["displacement"][nodes]

@@ -3,7 +3,8 @@
 Each fragment brings its nodes at their reference positions and the point field
 ``displacement`` of its rigid motion, so Warp By Vector moves the whole scene; cell fields
 are zero where a rigid body has none (stress), frozen at hand-off where it has
-(``equivalent_plastic_strain``), with ``fragment_id`` and the flag ``rigid`` (1).
+(``equivalent_plastic_strain``), with ``fragment_id`` (its order of hand-off) and the flag
+``rigid`` (1).
 """
 
 from __future__ import annotations
@@ -14,10 +15,10 @@ from .body import point_velocities
 
 
 def with_rigid_fragments(fragments, points: np.ndarray, cells: np.ndarray,
-                         point_data: dict, cell_data: dict, first_id: int,
-                         none_deformable: bool = False):
+                         point_data: dict, cell_data: dict, none_deformable: bool = False):
     """``(points, cells, point_data, cell_data)`` of the finite elements followed by every
-    fragment of ``fragments``; fragment ``k`` gets ``fragment_id`` ``first_id + k``.
+    fragment of ``fragments``; fragment ``k`` gets ``fragment_id`` ``k`` (its order of
+    hand-off: stable from frame to frame; number the deformable pieces after them).
     ``none_deformable``: no finite element is left, write the fragments only."""
     n_cells = 0 if none_deformable else cells.shape[0]
     if none_deformable:
@@ -42,7 +43,7 @@ def with_rigid_fragments(fragments, points: np.ndarray, cells: np.ndarray,
                "velocity": point_velocities(f.body, world)}
         for name, parts in pdata.items():
             parts.append(own.get(name, np.zeros((f.nodes.shape[0],) + parts[0].shape[1:])))
-        frozen = dict(f.cell_data, fragment_id=np.full(m, first_id + k, dtype=np.int32),
+        frozen = dict(f.cell_data, fragment_id=np.full(m, k, dtype=np.int32),
                       rigid=np.ones(m, dtype=np.int8))
         for name, parts in cdata.items():
             value = frozen.get(name)
