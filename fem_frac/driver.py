@@ -365,7 +365,7 @@ def simulate(setup: Setup, timer: StageTimer, observe: Observer, log: Log = quie
                          elastic=0.0)
         with timer("steps"):
             return march_rigid(rigid, times, 0, resting(d, 0.0), ledger, StepInfo(0, 0.0),
-                               observe, counters, d)
+                               observe, counters)
     from .rigid.stage import AllRigid
 
     with timer("steps"):
@@ -378,12 +378,12 @@ def simulate(setup: Setup, timer: StageTimer, observe: Observer, log: Log = quie
             d = fracture.current
             frozen = replace(done.ledger, kinetic=0.0, elastic=0.0)
             return march_rigid(rigid, times, done.step, resting(d, done.state.t), frozen,
-                               done.info, observe, counters, d)
+                               done.info, observe, counters)
     return state, ledger, counters
 
 
 def march_rigid(rigid, times: np.ndarray, n: int, state: State, ledger: Ledger,
-                info: StepInfo, observe: Observer, counters: Counters, d: Discretization):
+                info: StepInfo, observe: Observer, counters: Counters):
     """Steps ``n`` (observed here) to the end with rigid bodies only."""
     observe(n, state, ledger, info)
     for k in range(n + 1, len(times)):

@@ -132,3 +132,38 @@ def test_bad_fragments_sections_are_located(tmp_path, capsys, edit, key, message
     err = capsys.readouterr().err.strip()
     assert err.startswith(f"error: {path}:") and f": {key}:" in err and message in err, err
     assert len(err.splitlines()) == 1
+
+
+def test_a_body_free_of_supports_goes_rigid_and_flies_on(tmp_path):
+    """With no support at all the whole body is a free piece after the first step: it is
+    handed off, no finite element is left, and the rest of the run moves the rigid body
+    alone, on the exact parabola from its hand-off state."""
+    import json
+
+    from solve import write_case
+
+    case = {
+        "mesh": {"geometry": {"type": "box", "lengths": [0.2, 0.1, 0.1]}, "element_size": 0.05},
+        "material": {"youngs_modulus": 1e9, "poissons_ratio": 0.3, "density": 1000.0},
+        "body_force": {"gravity": [0.0, 0.0, -9.81]},
+        "fracture": {"tensile_strength": 1e12, "smoothing": {"rings": 1}},
+        "fragments": {},
+        "analysis": {"type": "dynamic", "dt": 0.01, "steps": 20,
+                     "initial_velocity": {"uniform": [1.0, 0.0, 2.0]}},
+    }
+    path = write_case(tmp_path / "free.yaml", case)
+    out = tmp_path / "out"
+    assert main(["run", str(path), "-o", str(out), "-q"]) == 0
+    s = json.loads((out / "summary.json").read_text())
+    f = s["fragments"]
+    assert f["rigid_bodies"] == 1 and not f["finite_elements_left"]
+    body = f["bodies"][0]
+    born = body["born"]
+    assert born == pytest.approx(0.01)
+    h = read_history(out / "history.csv")
+    assert h["step"] == list(range(21))
+    # momentum at the end: m (v0 + g t); the hand-off kept the FE momentum of step 1
+    m, t = body["mass"], 0.2
+    np.testing.assert_allclose(body["momentum"], m * np.array([1.0, 0.0, 2.0 - 9.81 * t]),
+                               rtol=0, atol=1e-9 * m)
+    assert max(h["energy_error_relative"]) < 1e-9
