@@ -286,8 +286,7 @@ def fracture_stage(setup: Setup, timer: StageTimer, log: Log = quiet):
             except CaseError as exc:
                 raise SolverError(f"after crack insertion: {exc.message}") from None
 
-    return FractureStage(case.fracture, setup.law, setup.discretization, build, setup.dynamic,
-                         log)
+    return FractureStage(case.fracture, setup.discretization, build, setup.dynamic, log)
 
 
 def rigid_stage(setup: Setup, fracture, log: Log = quiet):

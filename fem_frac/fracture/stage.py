@@ -37,7 +37,8 @@ from .summary import crack_measures
 from .topology import CRACK, Transfer, fragments, open_crack
 
 # ``build(mesh)`` -> the discretization on a mesh: an object with ``model`` (``mesh``,
-# ``space``, ``problem``), ``ops``, ``constrained`` and ``stepper`` (see fem_frac.driver).
+# ``space``, ``problem``, ``materials``), ``ops``, ``constrained``, ``stepper``, ``limit``
+# and ``law`` (fem_frac.driver.Discretization).
 Build = Callable[[Mesh], object]
 
 
@@ -95,9 +96,9 @@ class FractureStage:
     section; ``current`` is the discretization in use, ``labels`` the fragment of every
     element."""
 
-    def __init__(self, config: schema.Fracture, law, current, build: Build, inertia: bool,
+    def __init__(self, config: schema.Fracture, current, build: Build, inertia: bool,
                  log: Callable[[str], None] | None = None):
-        self.config, self.law, self.build, self.inertia = config, law, build, inertia
+        self.config, self.build, self.inertia = config, build, inertia
         self.log = log or (lambda _: None)
         self.current = current
         self.batches: list[Batch] = []
