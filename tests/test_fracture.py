@@ -276,3 +276,20 @@ def test_bad_fracture_sections_are_located(tmp_path, capsys, section, key, messa
     err = capsys.readouterr().err.strip()
     assert err.startswith(f"error: {path}:") and key in err and message in err
     assert len(err.splitlines()) == 1
+
+
+def test_quadratic_bar_breaks_in_the_same_step():
+    """P2 reproduces the uniform field too (exactly), so the quadratic bar breaks in the
+    same first step at or above the strength, into two pieces, its mid-edge nodes carried
+    with their edges."""
+    case = bar()
+    case["mesh"].update(order=2, element_size=0.01)
+    rows = []
+    _, stage, state, ledger, _ = run_fracture(
+        case, observe=lambda n, s, led, info: rows.append((n, s.t, info.insertions)))
+    first = next(n for n, _, k in rows if k > 0)
+    applied = E * np.array([t for _, t, _ in rows]) * 2.1e-5 / L
+    assert applied[first] >= STRENGTH > applied[first - 1]
+    assert stage.n_fragments == 2
+    check_topology(stage.current.model.mesh)
+    assert ledger.elastic < 1e-12 * ledger.fracture  # unloaded once broken
