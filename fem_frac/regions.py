@@ -51,20 +51,8 @@ def element_materials(material: schema.Material, regions: list[schema.Region],
     centroids = mesh.points[mesh.tets].mean(axis=1)
     counts = []
     for i, region in enumerate(regions):
-        if region.subdomain is not None:
-            if region.subdomain not in mesh.subdomains:
-                known = ", ".join(sorted(mesh.subdomains)) or "none"
-                raise CaseError(("regions", i, "subdomain"),
-                                f"no volume group {region.subdomain!r} in the mesh (groups: "
-                                f"{known})")
-            chosen = np.asarray(mesh.subdomains[region.subdomain])
-            key = ("regions", i, "subdomain")
-        else:
-            lo, hi = np.asarray(region.box.min), np.asarray(region.box.max)
-            chosen = np.flatnonzero(np.all((centroids >= lo) & (centroids <= hi), axis=1))
-            key = ("regions", i, "box")
-        if len(chosen) == 0:
-            raise CaseError(key, "selects no elements")
+        chosen = selected_elements(mesh, region.subdomain, region.box, ("regions", i),
+                                   centroids)
         counts.append(len(chosen))
         if region.youngs_modulus is not None:
             e[chosen] = region.youngs_modulus
@@ -74,3 +62,26 @@ def element_materials(material: schema.Material, regions: list[schema.Region],
             rho[chosen] = region.density
     density = None if np.all(np.isnan(rho)) else rho
     return ElementMaterials(e, nu, density, tuple(counts))
+
+
+def selected_elements(mesh: Mesh, subdomain: str | None, box, key: tuple,
+                      centroids: np.ndarray | None = None, strict: bool = True) -> np.ndarray:
+    """Tet ids of the mesh volume group ``subdomain``, or of the tets whose centroid lies in
+    ``box`` (a ``schema.BoxSelection``). An unknown group is an error located at
+    ``key + ("subdomain",)``; an empty selection one at ``key + (<which>,)`` when ``strict``."""
+    if subdomain is not None:
+        if subdomain not in mesh.subdomains:
+            known = ", ".join(sorted(mesh.subdomains)) or "none"
+            raise CaseError(key + ("subdomain",),
+                            f"no volume group {subdomain!r} in the mesh (groups: {known})")
+        chosen, which = np.asarray(mesh.subdomains[subdomain], dtype=np.int64), "subdomain"
+    else:
+        if centroids is None:
+            centroids = mesh.points[mesh.tets].mean(axis=1)
+        lo, hi = np.asarray(box.min), np.asarray(box.max)
+        chosen = np.flatnonzero(np.all((centroids >= lo) & (centroids <= hi), axis=1))
+        which = "box"
+    if len(chosen) == 0 and strict:
+        raise CaseError(key + (which,), "selects no elements")
+    return chosen
+

@@ -28,6 +28,7 @@ from ..config import schema
 from ..errors import CaseError, SolverError
 from ..mesh.mesh import Mesh, tet_volumes
 from ..problem import free_rigid_modes
+from ..regions import selected_elements
 from ..stepping import Ledger, State, StepInfo, System, advance
 from ..writers.fields import cell_average
 from .remap import dof_transfer, node_transfer, transfer_plastic
@@ -68,19 +69,10 @@ def protected_vertices(config: schema.Fracture, mesh: Mesh, strict: bool = True)
                                 f"the mesh has no boundary {p.boundary!r} (groups: {known})")
             mask[np.asarray(mesh.boundaries[p.boundary]).ravel()] = True
             continue
-        if p.subdomain is not None:
-            if p.subdomain not in mesh.subdomains:
-                known = ", ".join(sorted(mesh.subdomains)) or "none"
-                raise CaseError(("fracture", "protect", i, "subdomain"),
-                                f"no volume group {p.subdomain!r} in the mesh (groups: {known})")
-            tets = np.asarray(mesh.subdomains[p.subdomain], dtype=np.int64)
-        else:
-            if centroids is None:
-                centroids = mesh.points[mesh.tets].mean(axis=1)
-            lo, hi = np.asarray(p.box.min), np.asarray(p.box.max)
-            tets = np.flatnonzero(np.all((centroids >= lo) & (centroids <= hi), axis=1))
-            if tets.size == 0 and strict:
-                raise CaseError(("fracture", "protect", i, "box"), "selects no elements")
+        if p.box is not None and centroids is None:
+            centroids = mesh.points[mesh.tets].mean(axis=1)
+        tets = selected_elements(mesh, p.subdomain, p.box, ("fracture", "protect", i),
+                                 centroids, strict)
         mask[mesh.tets[tets].ravel()] = True
     return mask
 
@@ -129,6 +121,9 @@ class FractureStage:
         self.debris_volume = float(np.median(pattern @ self.volumes))
         self.crack = crack_measures(mesh)
         self.refused = np.zeros(mesh.n_points, dtype=bool)
+        self.on_crack = np.zeros(mesh.n_points, dtype=bool)
+        self.on_crack[np.asarray(mesh.boundaries.get(CRACK, np.zeros((0, 3), int))).ravel()] = True
+        self._principal = None  # (stress array, result) of the last state asked about
 
     # -- the hook --------------------------------------------------------------------------
 
@@ -229,9 +224,14 @@ class FractureStage:
         return sites, None, None, np.array(dropped, dtype=np.int64)
 
     def principal(self, state: State) -> tuple[np.ndarray, np.ndarray]:
-        """Smoothed largest principal stress ``(m,)`` and its direction ``(m, 3)``."""
+        """Smoothed largest principal stress ``(m,)`` and its direction ``(m, 3)`` (the
+        last one kept: the output asks about the state the stage has just looked at)."""
+        if self._principal is not None and self._principal[0] is state.stress:
+            return self._principal[1]
         mean = cell_average(self.current.model.space, state.stress)
-        return principal_stress(smooth(self.smoothing, mean))
+        result = principal_stress(smooth(self.smoothing, mean))
+        self._principal = (state.stress, result)
+        return result
 
     def sites(self, state: State, n: int, batch: int, limit: int,
               refused: np.ndarray | None = None):
@@ -241,10 +241,8 @@ class FractureStage:
         if p is not None:
             rng = np.random.default_rng([p.seed, n, batch])
             direction = tilt(direction, np.radians(p.angle), rng)
-        on_crack = np.zeros(mesh.n_points, dtype=bool)
-        on_crack[np.asarray(mesh.boundaries.get(CRACK, np.zeros((0, 3), int))).ravel()] = True
         return select_sites(mesh.points, mesh.tets, sigma1, direction,
-                            self.config.tensile_strength, self.smoothing, on_crack,
+                            self.config.tensile_strength, self.smoothing, self.on_crack,
                             self.protected if refused is None else self.protected | refused,
                             limit, self.star)
 

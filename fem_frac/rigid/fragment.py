@@ -34,7 +34,9 @@ class RigidFragment:
     nodes); ``cells (e, 4 | 10)``: local node ids in VTK order; ``body_coords (k, 3)``:
     the nodes in the body frame; ``cell_data``: the element fields frozen at hand-off;
     ``fragment_id``: its id in the output; ``born``: the time of hand-off;
-    ``vibration_energy``: the energy that left with the finite elements."""
+    ``vibration_energy``: the energy that left with the finite elements; ``kinetic`` and
+    ``strain``: the piece's kinetic and strain energy in the finite elements at hand-off;
+    ``resting``: steps it has rested on the ground (see fem_frac.rigid.stage)."""
 
     body: RigidBody
     nodes: np.ndarray
@@ -44,6 +46,9 @@ class RigidFragment:
     born: float
     vibration_energy: float = 0.0
     cell_data: dict = field(default_factory=dict)
+    kinetic: float = 0.0
+    strain: float = 0.0
+    resting: int = 0
 
     def world(self) -> np.ndarray:
         """World positions ``(k, 3)`` of the nodes."""
@@ -102,4 +107,5 @@ def rigid_piece(points: np.ndarray, tets: np.ndarray, nodes: np.ndarray, cells: 
     finite_element_kinetic = 0.5 * float(np.sum(mv * v))
     vibration = finite_element_kinetic + strain_energy - kinetic_energy(body)
     return RigidFragment(body, np.asarray(nodes, dtype=float), np.asarray(cells),
-                         body_coords, fragment_id, born, vibration, cell_data or {})
+                         body_coords, fragment_id, born, vibration, cell_data or {},
+                         finite_element_kinetic, strain_energy)

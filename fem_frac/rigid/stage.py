@@ -64,7 +64,6 @@ class RigidStage:
         self.vibration_energy = 0.0  # removed at hand-offs, in all
         self.handed_energy = 0.0  # kinetic + strain energy the pieces took along
         self.only = False  # no finite elements left
-        self._quiet: list[int] = []  # steps each body has rested
 
     # -- rigid motion ----------------------------------------------------------------------
 
@@ -78,23 +77,16 @@ class RigidStage:
         h = (t1 - t0) / k
         quiet = 0.5 * float(self.gravity @ self.gravity) * h * h
         moved = []
-        for i, f in enumerate(self.fragments):
-            if self.quiet[i] >= SLEEP_STEPS:
+        for f in self.fragments:
+            if f.resting >= SLEEP_STEPS:
                 moved.append(f)
                 continue
             body = f.body
             for _ in range(k):
                 body = step(body, h, self.gravity, self.planes)
             resting = self.planes and quiet > 0 and kinetic_energy(body) < quiet * body.mass
-            self.quiet[i] = self.quiet[i] + 1 if resting else 0
-            moved.append(replace(f, body=body))
+            moved.append(replace(f, body=body, resting=f.resting + 1 if resting else 0))
         self.fragments = moved
-
-    @property
-    def quiet(self) -> list[int]:
-        while len(self._quiet) < len(self.fragments):
-            self._quiet.append(0)
-        return self._quiet
 
     def energies(self) -> tuple[float, float]:
         """Kinetic energy and gravitational potential energy (zero at the origin) of all
@@ -118,13 +110,11 @@ class RigidStage:
         mesh = current.model.mesh
         leaving = np.zeros(mesh.n_tets, dtype=bool)
         kinetic = strain = 0.0
-        for elements in pieces:
-            f = self.hand_off(current, end, elements)
+        for elements, f in pieces:
             leaving[elements] = True
             self.fragments.append(f)
             self.vibration_energy += f.vibration_energy
-            k, e = self.piece_energy(current, end, elements)
-            kinetic, strain = kinetic + k, strain + e
+            kinetic, strain = kinetic + f.kinetic, strain + f.strain
             self.log(f"fragments  step {n}: a piece of {len(elements)} elements is rigid "
                      f"(mass {f.body.mass:.4g}; vibration energy {f.vibration_energy:.3g} "
                      "removed)")
@@ -143,9 +133,9 @@ class RigidStage:
 
     # -- parts -----------------------------------------------------------------------------
 
-    def free_pieces(self, current, state: State) -> list[np.ndarray]:
-        """Element ids of every piece without a constrained node that the section turns
-        rigid now."""
+    def free_pieces(self, current, state: State) -> list[tuple[np.ndarray, RigidFragment]]:
+        """``(element ids, rigid fragment)`` of every piece without a constrained node that
+        the section turns rigid now."""
         labels, count = self.fracture.labels, self.fracture.n_fragments
         space = current.model.space
         nodes = space.basis.element_dofs  # (n_local, n_tets)
@@ -155,41 +145,24 @@ class RigidStage:
         np.logical_or.at(held_piece, np.repeat(labels, nodes.shape[0]), held[nodes.T].ravel())
         out = []
         volumes = current.model.space.basis.dx.sum(axis=1)
+        rule = self.config.become_rigid
         for k in np.flatnonzero(~held_piece).tolist():
             elements = np.flatnonzero(labels == k)
-            rule = self.config.become_rigid
             if rule == "small" and volumes[elements].sum() > self.config.max_volume:
                 continue
-            if rule == "settled":
-                f = self.hand_off(current, state, elements)
-                if f.vibration_energy > self.config.vibration_tolerance * max(
-                        kinetic_energy(f.body), 1e-300):
-                    continue
-            out.append(elements)
+            f = self.hand_off(current, state, elements, len(self.fragments) + len(out))
+            if rule == "settled" and f.vibration_energy > self.config.vibration_tolerance * max(
+                    kinetic_energy(f.body), 1e-300):
+                continue
+            out.append((elements, f))
         return out
 
-    def piece_energy(self, current, state: State, elements: np.ndarray
-                     ) -> tuple[float, float]:
-        """Kinetic and strain energy of a piece in the finite elements."""
-        dofs = self._dofs(current, elements)
-        v = state.v
-        kinetic = 0.5 * float(v[dofs] @ (current.ops.mass @ v)[dofs])
-        weights = np.zeros_like(current.ops.weights)
-        weights[elements] = current.ops.weights[elements]
-        return kinetic, current.law.elastic_energy(state.stress, weights)
-
-    @staticmethod
-    def _nodes(current, elements: np.ndarray) -> np.ndarray:
-        return np.unique(current.model.space.basis.element_dofs[:, elements])
-
-    def _dofs(self, current, elements: np.ndarray) -> np.ndarray:
-        nodes = self._nodes(current, elements)
-        return (3 * nodes[:, None] + np.arange(3)).ravel()
-
-    def hand_off(self, current, state: State, elements: np.ndarray) -> RigidFragment:
+    def hand_off(self, current, state: State, elements: np.ndarray,
+                 fragment_id: int = 0) -> RigidFragment:
         """The rigid fragment of the piece ``elements`` of the current mesh."""
         space, mesh = current.model.space, current.model.mesh
-        nodes = self._nodes(current, elements)  # vertices first (they have the lower ids)
+        # vertices first (they have the lower ids)
+        nodes = np.unique(space.basis.element_dofs[:, elements])
         local = np.full(space.n_nodes, -1, dtype=np.int64)
         local[nodes] = np.arange(nodes.size)
         cells = local[space.basis.element_dofs[:, elements].T]
@@ -212,6 +185,5 @@ class RigidStage:
             dx = current.ops.weights[elements]
             alpha = state.plastic.equivalent_plastic_strain[elements]
             frozen["equivalent_plastic_strain"] = (alpha * dx).sum(axis=1) / dx.sum(axis=1)
-        fid = (max((f.fragment_id for f in self.fragments), default=-1) + 1)
         return rigid_piece(points, tets, space.node_points[nodes], cells, x, mv, v, rho,
-                           strain, fid, state.t, frozen, mx)
+                           strain, fragment_id, state.t, frozen, mx)
