@@ -16,8 +16,8 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).parent.parent / "tests"))
+from fem_frac.app.driver import prepare  # noqa: E402
 from fem_frac.config.schema import Case  # noqa: E402
-from fem_frac.driver import prepare  # noqa: E402
 from fem_frac.timing import StageTimer  # noqa: E402
 from solve import run  # noqa: E402
 

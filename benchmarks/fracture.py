@@ -147,12 +147,12 @@ def best(fn, repeats: int):
 
 
 def one(n_tets: int, repeats: int) -> dict:
+    from fem_frac.app.driver import fracture_stage, prepare
     from fem_frac.config.schema import Case
-    from fem_frac.driver import fracture_stage, prepare
     from fem_frac.fracture.smoothing import principal_stress, smooth, update_operator
     from fem_frac.fracture.stage import smoothing_of
     from fem_frac.fracture.topology import open_crack
-    from fem_frac.stepping import advance, initial_ledger, initial_state
+    from fem_frac.solve.stepping import advance, initial_ledger, initial_state
     from fem_frac.timing import StageTimer
     from fem_frac.writers.fields import cell_average
 

@@ -30,7 +30,7 @@ from test_hill import (  # noqa: E402
     slope,
 )
 
-from fem_frac.exact import hill_sphere_outer_displacement, hill_sphere_pressure  # noqa: E402
+from fem_frac.verify.exact import hill_sphere_outer_displacement, hill_sphere_pressure  # noqa: E402
 
 DOC = Path(__file__).parent.parent / "docs" / "plasticity.md"
 LOCKING_SIZES = FINE[:2]
@@ -192,7 +192,7 @@ c <= r <= b is elastic and at yield on r = c. Then
 
 first yield at p_e = p(a) = {p_e:.1f}, limit load p_L = p(b) = 2 sigma_Y ln(b/a) = {p_l:.1f}.
 The loading is monotonic (no point unloads), so the final state does not depend on the
-path or the number of steps. `fem_frac.exact.hill_sphere_*` implements these, with c from p
+path or the number of steps. `fem_frac.verify.exact.hill_sphere_*` implements these, with c from p
 by Brent's method; `tests/test_exact.py` checks p(a) = p_e, p(b) = p_L, the inverse, and that
 u_b at c = a is Lamé's outer displacement under p_e.
 

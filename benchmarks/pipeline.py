@@ -35,8 +35,8 @@ def one(n_tets: int, order: int, solver: str, repeats: int) -> dict:
     from fem_frac.fem.elasticity import stiffness
     from fem_frac.fem.space import build_space
     from fem_frac.fem.tensors import isotropic_tangent
-    from fem_frac.linalg import factorize
     from fem_frac.mesh.build import build_mesh
+    from fem_frac.solve.linalg import factorize
 
     volume = LENGTHS[0] * LENGTHS[1] * LENGTHS[2]
     h = (TETS_PER_H3 * volume / n_tets) ** (1 / 3)

@@ -182,8 +182,8 @@ def patched(module, name: str, value):
 def instrumented(setup, clock: Clock, method: str | None = None):
     """A copy of the setup's stepper whose collaborators report to ``clock``; with
     ``method``, that equilibrium method instead of the case's."""
-    import fem_frac.linalg as linalg
-    from fem_frac import stepping
+    import fem_frac.solve.linalg as linalg
+    from fem_frac.solve import stepping
 
     base = setup.stepper
     st = copy.copy(base)
@@ -239,7 +239,7 @@ def pardiso_phases(setup) -> dict:
     """Seconds of PARDISO's analysis (phase 11: METIS ordering, symbolic factorization) and
     numerical factorization (phase 22) of the elastic Jacobian on the free dofs: what a
     refactorization with an unchanged sparsity pattern could skip, and what it cannot."""
-    from fem_frac import linalg
+    from fem_frac.solve import linalg
 
     if setup.stepper.elastic_factor().method != "pardiso":
         return {}
@@ -272,8 +272,8 @@ def exclusive(seconds: dict[str, float], total: float) -> dict[str, float]:
 # ---------------------------------------------------------------- one configuration
 
 def one(n_tets: int, order: int, formulation: str, repeats: int, newton_repeats: int) -> dict:
+    from fem_frac.app.driver import prepare, simulate
     from fem_frac.config.schema import Case
-    from fem_frac.driver import prepare, simulate
     from fem_frac.timing import StageTimer
 
     row: dict = {"target_tets": n_tets, "order": order, "formulation": formulation}

@@ -2,7 +2,7 @@
 
 Builds a 4 x 1 x 1 box of ~N tets (scikit-fem's structured ``MeshTet.init_tensor``), P1 or P2
 vector elements, isotropic linear elasticity, clamped at x = 0, and measures each backend of
-``fem_frac.linalg`` (plus ``cholespy`` when installed, as a candidate) in a fresh subprocess,
+``fem_frac.solve.linalg`` (plus ``cholespy`` when installed, as a candidate) in a fresh subprocess,
 so that its peak memory (VmHWM, which sees MKL's and CHOLMOD's allocations) is its own.
 Prints a markdown table; the numbers are recorded in docs/solvers.md.
 
@@ -62,7 +62,7 @@ def build(n_tets: int, order: int, path: str) -> dict:
 # ---------------------------------------------------------------- child: one backend
 
 def _cholespy(a):
-    """Candidate not kept in fem_frac.linalg: cholespy's CPU Cholesky (bundled CHOLMOD)."""
+    """Candidate not kept in fem_frac.solve.linalg: cholespy's CPU Cholesky (bundled CHOLMOD)."""
     import numpy as np
     from cholespy import CholeskySolverD, MatrixType
 
@@ -84,7 +84,7 @@ def measure(method: str, path: str, repeats: int) -> dict:
     import numpy as np
     import scipy.sparse as sp
 
-    from fem_frac.linalg import factorize
+    from fem_frac.solve.linalg import factorize
 
     a = sp.load_npz(path).tocsr()
     b = np.random.default_rng(1).standard_normal(a.shape[0])
@@ -143,7 +143,7 @@ def predict(history: list[dict], n: int) -> tuple[float, float]:
 
 
 def candidate_methods() -> list[str]:
-    from fem_frac.linalg import available_methods
+    from fem_frac.solve.linalg import available_methods
 
     methods = available_methods()
     try:

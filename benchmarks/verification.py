@@ -27,7 +27,7 @@ from test_verification import (  # noqa: E402
     tip_deflection,
 )
 
-from fem_frac.exact import cantilever_tip_deflection  # noqa: E402
+from fem_frac.verify.exact import cantilever_tip_deflection  # noqa: E402
 
 
 def timed(fn, *args):

@@ -4,8 +4,8 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from fem_frac.app.driver import prepare, simulate
 from fem_frac.config.schema import Case
-from fem_frac.driver import prepare, simulate
 from fem_frac.timing import StageTimer
 
 
@@ -27,7 +27,7 @@ def solve(case_dict: dict, case_dir: Path = Path(".")):
 def run_fracture(case_dict: dict, case_dir: Path = Path("."), observe=None):
     """``(setup, fracture stage, final state, ledger, counters)`` of a case with fracture;
     ``stage.current`` is the final discretization (mesh, space, operators)."""
-    from fem_frac.driver import fracture_stage
+    from fem_frac.app.driver import fracture_stage
 
     case = Case.model_validate(case_dict)
     timer = StageTimer()
@@ -41,7 +41,7 @@ def run_fracture(case_dict: dict, case_dir: Path = Path("."), observe=None):
 def run_fragments(case_dict: dict, case_dir: Path = Path("."), observe=None):
     """``(setup, fracture stage, rigid stage, final state, ledger)`` of a case with
     fragments."""
-    from fem_frac.driver import fracture_stage, rigid_stage
+    from fem_frac.app.driver import fracture_stage, rigid_stage
 
     case = Case.model_validate(case_dict)
     timer = StageTimer()

@@ -4,7 +4,7 @@ import textwrap
 
 import pytest
 
-from fem_frac.cli import main
+from fem_frac.app.cli import main
 
 BASE = textwrap.dedent(
     """\

@@ -3,7 +3,7 @@
 import pytest
 from test_cli_errors import BASE
 
-from fem_frac.cli import main
+from fem_frac.app.cli import main
 from fem_frac.config import load_case
 from fem_frac.config.loader import parse_override
 from fem_frac.config.units import magnitude_warnings

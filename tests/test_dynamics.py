@@ -8,10 +8,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from fem_frac.app.driver import prepare
 from fem_frac.config.schema import Case
-from fem_frac.driver import prepare
 from fem_frac.errors import CaseError
-from fem_frac.stepping import ExplicitStepper, initial_state
+from fem_frac.solve.stepping import ExplicitStepper, initial_state
 from fem_frac.timing import StageTimer
 from solve import run
 
@@ -175,7 +175,7 @@ def test_rayleigh_damping_dissipates_and_the_ledger_accounts_for_it():
 
 
 def test_damping_shrinks_the_stable_step_of_central_difference():
-    from fem_frac.integrators import central_difference_limit
+    from fem_frac.solve.integrators import central_difference_limit
 
     assert central_difference_limit(1e3) == pytest.approx(2e-3)
     limits = [central_difference_limit(1e3, stiffness_damping=a1) for a1 in (0, 1e-4, 1e-3)]

@@ -1,10 +1,10 @@
-"""The closed-form solutions of fem_frac.exact checked against their own limits and each
+"""The closed-form solutions of fem_frac.verify.exact checked against their own limits and each
 other (Hill's plastic sphere against Lamé's elastic one)."""
 
 import numpy as np
 import pytest
 
-from fem_frac.exact import (
+from fem_frac.verify.exact import (
     hill_sphere_outer_displacement,
     hill_sphere_plastic_radius,
     hill_sphere_pressure,

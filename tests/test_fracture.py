@@ -15,13 +15,13 @@ import numpy as np
 import pytest
 import scipy.sparse as sp
 
+from fem_frac.app.driver import fracture_stage, prepare
 from fem_frac.config.schema import Case
-from fem_frac.driver import fracture_stage, prepare
 from fem_frac.fem.mass import consistent_mass, lumped_mass
 from fem_frac.fracture import CRACK, fragments, open_crack
 from fem_frac.mesh import exterior_facets, tet_volumes
 from fem_frac.mesh.mesh import TET_FACES, facet_keys
-from fem_frac.stepping import State
+from fem_frac.solve.stepping import State
 from fem_frac.timing import StageTimer
 from solve import run_fracture, write_case
 
@@ -245,7 +245,7 @@ def test_a_loose_piece_stops_a_static_run_with_a_clear_message(tmp_path, capsys)
     """Under a traction the far end of a broken bar has no support: a quasi-static solve
     is singular. The run stops at the step, names the stage and why (exit 3), and keeps
     the output written so far."""
-    from fem_frac.cli import main
+    from fem_frac.app.cli import main
     from fem_frac.writers.history import read_history
 
     case = bar(steps=4)
@@ -273,7 +273,7 @@ def test_a_loose_piece_stops_a_static_run_with_a_clear_message(tmp_path, capsys)
      "fracture.passes", "must be >= 1"),
 ])
 def test_bad_fracture_sections_are_located(tmp_path, capsys, section, key, message):
-    from fem_frac.cli import main
+    from fem_frac.app.cli import main
 
     case = bar()
     case["fracture"] = section

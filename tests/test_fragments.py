@@ -8,7 +8,7 @@ import meshio
 import numpy as np
 import pytest
 
-from fem_frac.cli import main
+from fem_frac.app.cli import main
 from fem_frac.writers.history import read_history
 
 CASES = Path(__file__).parent.parent / "cases"

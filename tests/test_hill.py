@@ -26,12 +26,12 @@ from dataclasses import dataclass
 import numpy as np
 import pytest
 
-from fem_frac.exact import (
+from fem_frac.fem.loads import surface_nodes
+from fem_frac.verify.exact import (
     hill_sphere_outer_displacement,
     hill_sphere_plastic_radius,
     hill_sphere_pressure,
 )
-from fem_frac.fem.loads import surface_nodes
 from solve import run
 
 A, B, E, SIGMA_Y = 1.0, 2.0, 210e3, 240.0

@@ -9,7 +9,7 @@ from skfem import Basis, ElementTetP1, ElementVector, MeshTet, asm, condense
 from skfem.models.elasticity import lame_parameters, linear_elasticity
 
 from fem_frac.errors import SolverError
-from fem_frac.linalg import available_methods, factorize
+from fem_frac.solve.linalg import available_methods, factorize
 
 METHODS = available_methods()
 N_RHS = 3
@@ -122,7 +122,7 @@ def test_wrong_rhs_shape(clamped):
 def test_refactorizer_reuses_the_analysis_of_one_pattern(clamped, method):
     """Matrices with the pattern of the first are factorized numerically only (PARDISO: one
     analysis), and every factorization solves its own matrix to round-off."""
-    from fem_frac.linalg import Refactorizer
+    from fem_frac.solve.linalg import Refactorizer
 
     refactorizer = Refactorizer(method)
     rng = np.random.default_rng(3)

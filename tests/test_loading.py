@@ -8,9 +8,9 @@ import pytest
 from fem_frac.config import schema
 from fem_frac.errors import CaseError
 from fem_frac.fem.space import build_space
-from fem_frac.loading import make_curve, resolve_curves, time_grid
 from fem_frac.mesh import Mesh
-from fem_frac.problem import build_problem
+from fem_frac.solve.loading import make_curve, resolve_curves, time_grid
+from fem_frac.solve.problem import build_problem
 from meshes import structured_box
 
 

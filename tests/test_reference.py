@@ -6,7 +6,7 @@ import json
 
 import pytest
 
-from fem_frac.cli import main
+from fem_frac.app.cli import main
 
 BAR = """\
 mesh:

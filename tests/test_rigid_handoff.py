@@ -13,11 +13,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from fem_frac.app.driver import fracture_stage, prepare, rigid_stage
 from fem_frac.config.schema import Case
-from fem_frac.driver import fracture_stage, prepare, rigid_stage
 from fem_frac.fracture import fragments, open_crack
 from fem_frac.rigid.body import angular_velocity, kinetic_energy, velocity
-from fem_frac.stepping import State
+from fem_frac.solve.stepping import State
 from fem_frac.timing import StageTimer
 from meshes import structured_box
 

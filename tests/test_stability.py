@@ -19,7 +19,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from fem_frac.cli import main
+from fem_frac.app.cli import main
 from fem_frac.writers.history import read_history
 
 CASES = Path(__file__).parent.parent / "cases" / "stability"
@@ -246,7 +246,7 @@ def _sphere(tmp_path, form, nu):
 
 
 def _bore(nu: float) -> float:
-    from fem_frac.exact import lame_sphere_radial_displacement
+    from fem_frac.verify.exact import lame_sphere_radial_displacement
 
     return float(lame_sphere_radial_displacement(0.1, 0.1, 0.2, 100e6, 210e9, nu))
 

@@ -10,8 +10,8 @@ import textwrap
 import numpy as np
 import pytest
 
-from fem_frac.cli import main
-from fem_frac.study import convergence_rate, load_study, pareto_front, richardson, run_id
+from fem_frac.app.cli import main
+from fem_frac.app.study import convergence_rate, load_study, pareto_front, richardson, run_id
 
 CASE = textwrap.dedent(
     """\

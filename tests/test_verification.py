@@ -3,8 +3,8 @@
 import numpy as np
 import pytest
 
-from fem_frac.exact import cantilever_tip_deflection, lame_sphere_displacement
-from fem_frac.fem.errors import l2_error
+from fem_frac.fem.norms import l2_error
+from fem_frac.verify.exact import cantilever_tip_deflection, lame_sphere_displacement
 from solve import solve
 
 E, NU = 210e9, 0.3

@@ -520,7 +520,7 @@ class Output(Section):
 
 class Reference(Section):
     """An exact solution the case is compared against; the error is reported in
-    summary.json (see fem_frac/reference.py for what each compares)."""
+    summary.json (see fem_frac/verify/reference.py for what each compares)."""
 
     solution: Literal["cantilever", "lame_sphere", "hill_sphere", "uniaxial_bar",
                       "free_vibration"]

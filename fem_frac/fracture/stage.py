@@ -27,9 +27,9 @@ from scipy.sparse.csgraph import connected_components
 from ..config import schema
 from ..errors import CaseError, SolverError
 from ..mesh.mesh import Mesh, tet_volumes
-from ..problem import free_rigid_modes
-from ..regions import selected_elements
-from ..stepping import Ledger, State, StepInfo, System, advance
+from ..plasticity.regions import selected_elements
+from ..solve.problem import free_rigid_modes
+from ..solve.stepping import Ledger, State, StepInfo, System, advance
 from ..writers.fields import cell_average
 from .remap import dof_transfer, node_transfer, transfer_plastic
 from .sites import select_sites, star, tilt
@@ -39,7 +39,7 @@ from .topology import CRACK, Transfer, fragments, open_crack
 
 # ``build(mesh)`` -> the discretization on a mesh: an object with ``model`` (``mesh``,
 # ``space``, ``problem``, ``materials``), ``ops``, ``constrained``, ``stepper``, ``limit``
-# and ``law`` (fem_frac.driver.Discretization).
+# and ``law`` (fem_frac.app.driver.Discretization).
 Build = Callable[[Mesh], object]
 
 
@@ -84,7 +84,7 @@ def smoothing_of(config: schema.Fracture, mesh: Mesh):
 
 
 class FractureStage:
-    """The ``after_step`` hook of :func:`~fem_frac.stepping.march` for a ``fracture:``
+    """The ``after_step`` hook of :func:`~fem_frac.solve.stepping.march` for a ``fracture:``
     section; ``current`` is the discretization in use, ``labels`` the fragment of every
     element."""
 

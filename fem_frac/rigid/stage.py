@@ -22,7 +22,7 @@ import numpy as np
 
 from ..config import schema
 from ..fracture.topology import extract
-from ..stepping import Ledger, State, StepInfo
+from ..solve.stepping import Ledger, State, StepInfo
 from .body import kinetic_energy
 from .contact import Plane, step
 from .fragment import RigidFragment, rigid_piece

@@ -7,13 +7,13 @@ import sys
 
 import numpy as np
 
-from . import __version__
-from .fem.space import Space
-from .mesh.mesh import Mesh
-from .problem import Problem
-from .stepping import Ledger, State, StepInfo
-from .writers.fields import plastic_fields, stress_fields, vtk_cells
-from .writers.series import SeriesWriter
+from .. import __version__
+from ..fem.space import Space
+from ..mesh.mesh import Mesh
+from ..solve.problem import Problem
+from ..solve.stepping import Ledger, State, StepInfo
+from ..writers.fields import plastic_fields, stress_fields, vtk_cells
+from ..writers.series import SeriesWriter
 
 
 def write_step(writer: SeriesWriter, space: Space, state: State, dynamic: bool,
@@ -33,7 +33,7 @@ def write_step(writer: SeriesWriter, space: Space, state: State, dynamic: bool,
     kind, cells = vtk_cells(space)
     points = space.node_points
     if rigid is not None:
-        from .rigid.output import with_rigid_fragments
+        from ..rigid.output import with_rigid_fragments
 
         # rigid bodies keep their ids (order of hand-off) from frame to frame; the
         # deformable pieces are numbered after them
@@ -50,7 +50,7 @@ def write_crack_surface(writer: SeriesWriter, mesh: Mesh, state: State,
     """The crack faces (both sides) of the deformable part as triangles over the mesh's
     vertices, with their displacement; written at every output step, empty before the first
     crack (ParaView drops a series' part that first appears mid-way)."""
-    from .fracture import CRACK
+    from ..fracture import CRACK
 
     tri = np.asarray(mesh.boundaries.get(CRACK, np.zeros((0, 3), dtype=np.int64)))
     if none_deformable:

@@ -4,9 +4,9 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from .config.schema import Case, DynamicAnalysis, StaticAnalysis
-from .loading import time_grid
-from .mesh.build import describe_source
+from ..config.schema import Case, DynamicAnalysis, StaticAnalysis
+from ..mesh.build import describe_source
+from ..solve.loading import time_grid
 
 # Quadrature points per tet for each order (scikit-fem's rules for fem.space.INTORDER).
 QUADRATURE_POINTS = {1: 1, 2: 4}
@@ -169,7 +169,7 @@ def _cadence(analysis) -> str:
 
 
 def _solver(method: str) -> str:
-    from .linalg import available_methods
+    from ..solve.linalg import available_methods
 
     return f"auto ({available_methods()[0]})" if method == "auto" else method
 

@@ -2,7 +2,7 @@
 
 A study sweeps a base case over a grid of settings. Every combination of the grid is one
 run: its values are applied as ``--set`` overrides and the run goes through exactly the
-code path of ``fem-frac run`` (:func:`fem_frac.cli.main`), in a fresh process of its own so
+code path of ``fem-frac run`` (:func:`fem_frac.app.cli.main`), in a fresh process of its own so
 that its peak resident memory (``ru_maxrss``) is its own. The study writes
 
 - ``runs/<run id>/``: the output of each run (``summary.json``, ``.pvd``, ...);
@@ -43,8 +43,8 @@ from typing import Annotated, Any
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator
 
-from .config.loader import Source, _case_error, parse_override, read_yaml
-from .errors import CaseError, FemFracError
+from ..config.loader import Source, _case_error, parse_override, read_yaml
+from ..errors import CaseError, FemFracError
 
 SIZE_KEY = "mesh.element_size"
 MATPLOTLIB_HINT = (
@@ -197,7 +197,7 @@ class StudyErrors(FemFracError):
 
 def load_study(path: str | Path) -> Study:
     """Read and validate a study file, expand its grid. Raises ``StudyErrors`` (located)."""
-    from .config.loader import _plain
+    from ..config.loader import _plain
 
     path = Path(path)
     data = read_yaml(path)
@@ -252,7 +252,7 @@ def load_study(path: str | Path) -> Study:
     if not case_path.is_file():
         errors.append(CaseError(("case",), f"no such case file: {case_path}"))
     elif spec.error is None and not any(k.startswith("reference") for k in all_keys):
-        from .config import load_case
+        from ..config import load_case
 
         case, _ = load_case(case_path)
         if case.reference is None:

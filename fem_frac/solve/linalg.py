@@ -30,7 +30,7 @@ from collections.abc import Callable
 import numpy as np
 import scipy.sparse as sp
 
-from .errors import SolverError
+from ..errors import SolverError
 
 # Fastest first, as measured (docs/solvers.md); "auto" takes the first available.
 PREFERENCE = ("pardiso", "cholmod", "superlu")

@@ -10,9 +10,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .config import schema
-from .errors import CaseError
-from .mesh.mesh import Mesh
+from ..config import schema
+from ..errors import CaseError
+from ..mesh.mesh import Mesh
 
 
 @dataclass(frozen=True, eq=False)

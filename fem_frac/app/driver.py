@@ -12,20 +12,19 @@ from pathlib import Path
 import numpy as np
 import scipy.sparse as sp
 
-from . import integrators, results
-from .config.schema import Case, DynamicAnalysis, StaticAnalysis
-from .errors import CaseError, SolverError
-from .fem.space import Space, build_space
-from .integrators import Implicit
-from .loading import TimeGrid, time_grid
-from .material import MaterialLaw, material_law
-from .mesh.build import build_mesh
-from .mesh.mesh import Mesh
-from .problem import Problem, build_problem, free_rigid_modes
-from .reference import Recorder, check_reference, reference_error
-from .regions import ElementMaterials, element_materials
-from .results import fracture_row, history_row, rigid_row, write_crack_surface, write_step
-from .stepping import (
+from ..config.schema import Case, DynamicAnalysis, StaticAnalysis
+from ..errors import CaseError, SolverError
+from ..fem.space import Space, build_space
+from ..mesh.build import build_mesh
+from ..mesh.mesh import Mesh
+from ..plasticity.law import MaterialLaw, material_law
+from ..plasticity.regions import ElementMaterials, element_materials
+from ..solve import integrators
+from ..solve.integrators import Implicit
+from ..solve.loading import TimeGrid, time_grid
+from ..solve.problem import Problem, build_problem, free_rigid_modes
+from ..solve.stable_step import ExplicitLimit, explicit_limit
+from ..solve.stepping import (
     Constrained,
     Counters,
     Equilibrium,
@@ -39,11 +38,13 @@ from .stepping import (
     initial_state,
     march,
 )
-from .timestep import ExplicitLimit, explicit_limit
-from .timing import StageTimer
-from .writers.directory import prepare_directory
-from .writers.history import HistoryWriter
-from .writers.series import SeriesWriter
+from ..timing import StageTimer
+from ..verify.reference import Recorder, check_reference, reference_error
+from ..writers.directory import prepare_directory
+from ..writers.history import HistoryWriter
+from ..writers.series import SeriesWriter
+from . import results
+from .results import fracture_row, history_row, rigid_row, write_crack_surface, write_step
 
 Log = Callable[[str], None]
 
@@ -94,7 +95,7 @@ def output_location(case: Case, case_path: Path, directory: str | None) -> tuple
 def build_operators(model: Model, case: Case, law: MaterialLaw, timer: StageTimer) -> Operators:
     """Strain operator and elastic stiffness; mass and damping when the analysis is
     dynamic."""
-    from .fem.operators import strain_operator
+    from ..fem.operators import strain_operator
 
     space, analysis = model.space, case.analysis
     with timer("assemble"):
@@ -105,7 +106,7 @@ def build_operators(model: Model, case: Case, law: MaterialLaw, timer: StageTime
         k = op.stiffness(d)
     mass = damping = None
     if isinstance(analysis, DynamicAnalysis):
-        from .fem.mass import consistent_mass, lumped_mass
+        from ..fem.mass import consistent_mass, lumped_mass
 
         with timer("mass"):
             density = model.materials.density
@@ -230,7 +231,7 @@ def prepare(case: Case, case_dir: Path, timer: StageTimer, log: Log = quiet) -> 
                 "a static solve is singular; add supports (fixed, displacement, symmetry)",
             )
     if case.fracture is not None:
-        from .fracture.stage import protected_vertices
+        from ..fracture.stage import protected_vertices
 
         protected_vertices(case.fracture, model.mesh)  # names and boxes checked here
     law = material_law(model.materials, case.plasticity)
@@ -274,7 +275,7 @@ def fracture_stage(setup: Setup, timer: StageTimer, log: Log = quiet):
     case = setup.case
     if case.fracture is None:
         return None
-    from .fracture.stage import FractureStage
+    from ..fracture.stage import FractureStage
 
     def build(mesh: Mesh) -> Discretization:
         with timer("fracture rebuild"):
@@ -294,7 +295,7 @@ def rigid_stage(setup: Setup, fracture, log: Log = quiet):
     case = setup.case
     if case.fragments is None:
         return None
-    from .rigid.stage import RigidStage
+    from ..rigid.stage import RigidStage
 
     f = case.fragments
     gravity = f.gravity if f.gravity is not None else (
@@ -353,7 +354,7 @@ def simulate(setup: Setup, timer: StageTimer, observe: Observer, log: Log = quie
             # ledger's initial energy
             state, _ = setup.stepper.step(state, 0.0, 0)
     if whole:
-        from .stepping import initial_ledger
+        from ..solve.stepping import initial_ledger
 
         d = setup.discretization
         body = rigid.hand_off(d, state, np.arange(model.mesh.n_tets))
@@ -365,7 +366,7 @@ def simulate(setup: Setup, timer: StageTimer, observe: Observer, log: Log = quie
         with timer("steps"):
             return march_rigid(rigid, times, 0, resting(d, 0.0), ledger, StepInfo(0, 0.0),
                                observe, counters)
-    from .rigid.stage import AllRigid
+    from ..rigid.stage import AllRigid
 
     with timer("steps"):
         try:

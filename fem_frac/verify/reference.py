@@ -1,5 +1,5 @@
 """Exact references a case can declare (``reference: {solution: ...}``): the quantity each
-compares, its exact value from :mod:`fem_frac.exact`, and the run's error, reported in
+compares, its exact value from :mod:`fem_frac.verify.exact`, and the run's error, reported in
 ``summary.json``.
 
 - ``cantilever``: a box along x, ``fixed`` on ``xmin``, a uniform z ``traction`` on
@@ -28,9 +28,9 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..config import schema
+from ..errors import CaseError
 from . import exact
-from .config import schema
-from .errors import CaseError
 
 KEY = ("reference", "solution")
 
@@ -139,7 +139,7 @@ def reference_error(setup, state, recorder: Recorder | None = None) -> dict:
         value = exact.cantilever_tip_deflection(force, length, width, height, e, nu)
         quantity = "tip deflection"
     elif name == "lame_sphere":
-        from .fem.errors import l2_error
+        from ..fem.norms import l2_error
 
         g = case.mesh.geometry
         p = _by_type(case, schema.Pressure, "inner")
@@ -210,7 +210,7 @@ def uniaxial_stress(strains, case: schema.Case) -> float:
 
 def _factor(problem, analysis, t: float, condition) -> float:
     """The curve factor of ``condition`` at time ``t``."""
-    from .loading import default_curve
+    from ..solve.loading import default_curve
 
     name = condition.curve if condition.curve is not None else default_curve(analysis)
     return float(problem.curves[problem.curve_names.index(name)](t))

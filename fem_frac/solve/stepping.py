@@ -1,7 +1,7 @@
 """The step loop: march a model through time, reaching equilibrium in every step.
 
 One implicit form covers static, quasi-static and implicit dynamic steps (see
-:mod:`fem_frac.integrators`); explicit central difference has its own update. Each step
+:mod:`fem_frac.solve.integrators`); explicit central difference has its own update. Each step
 evaluates the material law at every quadrature point through a strain operator built once,
 and solves with a matrix factorized once per topology unless full Newton asks for the
 consistent tangent.
@@ -23,11 +23,11 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 import scipy.sparse as sp
 
-from .errors import SolverError
+from ..errors import SolverError
+from ..plasticity.law import MaterialLaw
+from ..plasticity.return_map import PlasticState
 from .integrators import Implicit
 from .linalg import Refactorizer, factorize
-from .material import MaterialLaw
-from .plasticity.return_map import PlasticState
 from .problem import Problem
 
 

@@ -1,5 +1,5 @@
 """The ``fem-frac`` command: ``run`` a case, ``check`` it without solving, ``study`` a grid
-of runs (:mod:`fem_frac.study`).
+of runs (:mod:`fem_frac.app.study`).
 
 Exit codes: 0 success; 2 bad input (case file, mesh, options, a body left free to move), with
 a one-line message and no traceback; 3 a numerical failure (singular system, non-finite
@@ -12,8 +12,8 @@ import argparse
 import sys
 from pathlib import Path
 
-from . import __version__
-from .errors import CaseError, FemFracError, SolverError
+from .. import __version__
+from ..errors import CaseError, FemFracError, SolverError
 
 EXAMPLES = """examples:
   fem-frac check cases/cantilever.yaml
@@ -99,7 +99,7 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     if args.command == "study":
         return _study(args)
-    from .config import CaseErrors, load_case
+    from ..config import CaseErrors, load_case
 
     source = None
     try:
@@ -132,7 +132,7 @@ def main(argv: list[str] | None = None) -> int:
 
 
 def _warn_units(case, source) -> None:
-    from .config.units import magnitude_warnings
+    from ..config.units import magnitude_warnings
 
     for path, message in magnitude_warnings(case):
         print(f"warning: {source.format(CaseError(path, message))}", file=sys.stderr)
@@ -173,7 +173,7 @@ def _run(case, source, args) -> None:
 
 
 def _study(args) -> int:
-    from .config import CaseErrors
+    from ..config import CaseErrors
     from .study import StudyErrors, load_study, run_study, write_outputs
 
     if args.workers is not None and args.workers < 1:

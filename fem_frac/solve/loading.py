@@ -13,8 +13,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .config import schema
-from .errors import CaseError
+from ..config import schema
+from ..errors import CaseError
 
 Curve = Callable[[float], float]
 

@@ -7,17 +7,17 @@ from pathlib import Path
 
 import numpy as np
 
-from . import __version__
-from .config.loader import Source
-from .config.schema import Case, DynamicAnalysis
+from .. import __version__
+from ..config.loader import Source
+from ..config.schema import Case, DynamicAnalysis
+from ..errors import CaseError
+from ..fem.loads import facet_basis
+from ..mesh.build import mesh_file_path
+from ..mesh.mesh import min_dihedral_angles
+from ..mesh.selection import boundary_names, named_facets
+from ..timing import StageTimer
 from .driver import build_model, check_stages
-from .errors import CaseError
-from .fem.loads import facet_basis
-from .mesh.build import mesh_file_path
-from .mesh.mesh import min_dihedral_angles
-from .mesh.selection import boundary_names, named_facets
 from .plan import format_plan, make_plan
-from .timing import StageTimer
 
 # Tets with a smaller minimum dihedral angle than this are reported as poorly shaped.
 POOR_DIHEDRAL_DEG = 10.0
@@ -77,11 +77,11 @@ def check_report(case: Case, source: Source) -> str:
 
 def _time_step_lines(case: Case, model) -> list[str]:
     """The stable step of central difference (and how the case's dt compares)."""
+    from ..fem.mass import lumped_mass
+    from ..plasticity.law import material_law
+    from ..solve.loading import time_grid
+    from ..solve.stable_step import explicit_limit
     from .driver import Constrained, build_operators, explicit_substeps
-    from .fem.mass import lumped_mass
-    from .loading import time_grid
-    from .material import material_law
-    from .timestep import explicit_limit
 
     m = model.materials
     if not m.has_density():
@@ -132,8 +132,8 @@ def resolved_yaml(case: Case, source: Source) -> str:
 
 def _fracture_lines(case: Case, model) -> list[str]:
     """The protected vertices (names and boxes checked here) and the smoothing size."""
-    from .fracture.smoothing import mean_edge_length
-    from .fracture.stage import protected_vertices
+    from ..fracture.smoothing import mean_edge_length
+    from ..fracture.stage import protected_vertices
 
     mesh, f = model.mesh, case.fracture
     protected = protected_vertices(f, mesh)

@@ -9,12 +9,12 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .config import schema
-from .errors import CaseError
-from .fem import loads
-from .fem.space import Space
-from .mesh.mesh import exterior_facets, facet_keys
-from .mesh.selection import box_facets, named_facets
+from ..config import schema
+from ..errors import CaseError
+from ..fem import loads
+from ..fem.space import Space
+from ..mesh.mesh import exterior_facets, facet_keys
+from ..mesh.selection import box_facets, named_facets
 
 AXES = "xyz"
 # the boundary group of crack faces (fem_frac.fracture.topology.CRACK)

@@ -47,7 +47,7 @@ def highest_frequency(stiffness: sp.csr_matrix, lumped: np.ndarray, free: np.nda
 
 def explicit_limit(space, stiffness, lumped, free, youngs_modulus, poissons_ratio, density,
                    mass_damping=0.0, stiffness_damping=0.0) -> ExplicitLimit:
-    from .fem.mass import element_frequencies
+    from ..fem.mass import element_frequencies
 
     if np.ndim(youngs_modulus) == 0 and np.ndim(density) == 0:
         bound = float(element_frequencies(space, youngs_modulus, poissons_ratio,

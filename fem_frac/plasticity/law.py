@@ -10,9 +10,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .config import schema
-from .fem.tensors import isotropic_tangent, lame_parameters
-from .plasticity.return_map import PlasticState, radial_return
+from ..config import schema
+from ..fem.tensors import isotropic_tangent, lame_parameters
+from .return_map import PlasticState, radial_return
 
 
 @dataclass(frozen=True)
@@ -92,7 +92,7 @@ class MaterialLaw:
 
 def material_law(materials, plasticity: schema.Plasticity | None) -> MaterialLaw:
     """The law of a case: ``materials`` is a ``schema.Material`` or the per-element
-    :class:`~fem_frac.regions.ElementMaterials` (arrays become ``(n_tets, 1)``)."""
+    :class:`~fem_frac.plasticity.regions.ElementMaterials` (arrays become ``(n_tets, 1)``)."""
     e, nu = materials.youngs_modulus, materials.poissons_ratio
     if np.ndim(e):
         e, nu = np.asarray(e)[:, None], np.asarray(nu)[:, None]

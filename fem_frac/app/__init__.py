@@ -1,0 +1,1 @@
+"""The application: the command line, the run of a case, its report and its output."""

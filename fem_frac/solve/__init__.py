@@ -1,0 +1,1 @@
+"""Time stepping: supports and loads, integrators, equilibrium iteration, linear solvers."""
