@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 from scipy.sparse.csgraph import connected_components
 
-from fem_frac.fem.tensors import mandel_from_matrix
+from fem_frac.fem.tensors import mandel_from_matrix, principal, principal_values
 from fem_frac.fracture import face_adjacency, fragments, open_crack
 from fem_frac.fracture.smoothing import (
     centroids,
@@ -280,6 +280,20 @@ def test_principal_stress_random():
     np.testing.assert_allclose(np.linalg.norm(d, axis=1), 1.0, rtol=0, atol=1e-14)
     residual = np.einsum("mij,mj->mi", mats, d) - s1[:, None] * d
     assert np.abs(residual).max() < 1e-13
+
+
+def test_principal_stress_is_the_largest_of_principal():
+    """One eigen-decomposition (fem.tensors.principal) behind the fracture criterion and the
+    output field (principal_values, eigvalsh of the same matrices: a few ulps apart)."""
+    rng = np.random.default_rng(3)
+    m = mandel_from_matrix(_random_symmetric(rng, 50).reshape(3, 3, 10, 5))
+    values, vectors = principal(m)
+    assert values.shape == (10, 5, 3) and vectors.shape == (10, 5, 3, 3)
+    s1, d = principal_stress(m)
+    np.testing.assert_array_equal(s1, values[..., -1])
+    np.testing.assert_array_equal(np.abs(d), np.abs(vectors[..., -1]))
+    np.testing.assert_allclose(principal_values(m), np.moveaxis(values, -1, 0), rtol=0,
+                               atol=1e-13)
 
 
 def test_principal_stress_rotated_uniaxial():

@@ -15,6 +15,8 @@ SQRT2 = np.sqrt(2.0)
 # (row, column) of each 6-vector component in the 3x3 tensor, VTK order.
 COMPONENTS = ((0, 0), (1, 1), (2, 2), (0, 1), (1, 2), (0, 2))
 _MANDEL_SCALE = np.array([1.0, 1.0, 1.0, SQRT2, SQRT2, SQRT2])
+# the inverse of COMPONENTS: the 6-vector component of each 3x3 entry
+_MATRIX_INDEX = np.array([[0, 3, 5], [3, 1, 4], [5, 4, 2]])
 
 
 def mandel_from_matrix(a: np.ndarray) -> np.ndarray:
@@ -51,11 +53,23 @@ def von_mises(m: np.ndarray) -> np.ndarray:
     return np.sqrt(1.5 * dev2)
 
 
+def matrices_from_mandel(m: np.ndarray) -> np.ndarray:
+    """``(6, ...)`` Mandel -> ``(..., 3, 3)`` plain symmetric matrices (a view, components
+    last, the layout :mod:`numpy.linalg` batches over)."""
+    t = tensor_from_mandel(np.asarray(m, dtype=float))
+    return np.moveaxis(t[_MATRIX_INDEX], (0, 1), (-2, -1))
+
+
+def principal(m: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Eigenvalues ``(..., 3)``, ascending, and unit eigenvectors ``(..., 3, 3)`` (column
+    ``k`` belongs to value ``k``) of Mandel tensors ``(6, ...)``: batched
+    :func:`numpy.linalg.eigh`. Signs of the vectors are whatever LAPACK returns."""
+    return np.linalg.eigh(matrices_from_mandel(m))
+
+
 def principal_values(m: np.ndarray) -> np.ndarray:
-    """Eigenvalues, ascending, ``(3, ...)`` of Mandel tensors ``(6, ...)``."""
-    t = tensor_from_mandel(m)
-    a = np.empty(m.shape[1:] + (3, 3))
-    for k, (i, j) in enumerate(COMPONENTS):
-        a[..., i, j] = t[k]
-        a[..., j, i] = t[k]
-    return np.moveaxis(np.linalg.eigvalsh(a), -1, 0)
+    """Eigenvalues, ascending, ``(3, ...)`` of Mandel tensors ``(6, ...)``.
+
+    :func:`numpy.linalg.eigvalsh` of the matrices of :func:`principal`: cheaper than
+    ``eigh`` when no vectors are wanted (the two may differ by a few ulps)."""
+    return np.moveaxis(np.linalg.eigvalsh(matrices_from_mandel(m)), -1, 0)

@@ -37,13 +37,11 @@ from __future__ import annotations
 import numpy as np
 import scipy.sparse as sp
 
-from ..fem.tensors import tensor_from_mandel
+from ..fem.tensors import principal
 from ..mesh.mesh import TET_EDGES, tet_volumes
 from .topology import face_adjacency
 
 METHODS = ("neighbours", "nodal")
-# positions of the 3x3 entries in a (6,) VTK-ordered component vector
-_MATRIX_INDEX = np.array([[0, 3, 5], [3, 1, 4], [5, 4, 2]])
 
 
 def centroids(points: np.ndarray, tets: np.ndarray) -> np.ndarray:
@@ -262,14 +260,12 @@ def principal_stress(element_stress: np.ndarray) -> tuple[np.ndarray, np.ndarray
     """Largest principal stress and its unit direction of Mandel stresses ``(6, ...)``.
 
     Returns ``(sigma1 (...), direction (..., 3))`` (``(m,)`` and ``(m, 3)`` for ``(6, m)``),
-    from batched :func:`numpy.linalg.eigh`. Each direction is oriented so that its
-    largest-magnitude component is positive (the first such one on a tie), so the result
-    is reproducible; where the largest eigenvalue is repeated the direction is one unit
-    vector of its eigenspace, whichever LAPACK returns.
+    from :func:`~fem_frac.fem.tensors.principal` (batched :func:`numpy.linalg.eigh`). Each
+    direction is oriented so that its largest-magnitude component is positive (the first
+    such one on a tie), so the result is reproducible; where the largest eigenvalue is
+    repeated the direction is one unit vector of its eigenspace, whichever LAPACK returns.
     """
-    t = tensor_from_mandel(np.asarray(element_stress, dtype=float))
-    a = np.moveaxis(t[_MATRIX_INDEX], (0, 1), (-2, -1))  # (..., 3, 3)
-    values, vectors = np.linalg.eigh(a)
+    values, vectors = principal(element_stress)
     d = vectors[..., :, -1]
     k = np.argmax(np.abs(d), axis=-1)[..., None]
     sign = np.where(np.take_along_axis(d, k, axis=-1) < 0.0, -1.0, 1.0)
