@@ -24,32 +24,45 @@ EXAMPLES = """examples:
 """
 
 
+DESCRIPTION = (
+    "Finite-element solver for elastic, elastoplastic and brittle solids on\n"
+    "tetrahedra: static, quasi-static and dynamic analyses, cracks opened by face\n"
+    "separation where the smoothed stress exceeds the strength. A YAML case file\n"
+    "describes the scene; the output is a VTK time series (.pvd + .vtu) that ParaView\n"
+    "opens, with a history.csv of energies, reactions and iterations."
+)
+
+
 def _parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(
         prog="fem-frac",
-        description="Finite-element solver for elastic, elastoplastic and brittle solids on\n"
-        "tetrahedra: static, quasi-static and dynamic analyses, cracks opened by face\n"
-        "separation where the smoothed stress exceeds the strength. A YAML case file\n"
-        "describes the scene; the output is a VTK time series (.pvd + .vtu) that ParaView\n"
-        "opens, with a history.csv of energies, reactions and iterations.",
+        description=DESCRIPTION,
         epilog=EXAMPLES,
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     p.add_argument("--version", action="version", version=f"fem-frac {__version__}")
     sub = p.add_subparsers(dest="command", metavar="COMMAND")
+    _run_parser(sub)
+    _check_parser(sub)
+    _study_parser(sub)
+    return p
 
-    def common(sp):
-        sp.add_argument("case", type=Path, help="case file (YAML)")
-        sp.add_argument(
-            "--set",
-            dest="overrides",
-            action="append",
-            default=[],
-            metavar="KEY.PATH=VALUE",
-            help="override a case value, e.g. --set material.youngs_modulus=7e10 or "
-            "--set boundary_conditions[1].pressure=2e6 (repeatable; VALUE is YAML)",
-        )
 
+def _case_arguments(sp: argparse.ArgumentParser) -> None:
+    """The case file and its ``--set`` overrides, common to ``run`` and ``check``."""
+    sp.add_argument("case", type=Path, help="case file (YAML)")
+    sp.add_argument(
+        "--set",
+        dest="overrides",
+        action="append",
+        default=[],
+        metavar="KEY.PATH=VALUE",
+        help="override a case value, e.g. --set material.youngs_modulus=7e10 or "
+        "--set boundary_conditions[1].pressure=2e6 (repeatable; VALUE is YAML)",
+    )
+
+
+def _run_parser(sub) -> None:
     run = sub.add_parser(
         "run",
         help="mesh, solve and write the output of a case",
@@ -57,21 +70,25 @@ def _parser() -> argparse.ArgumentParser:
         "(wall time per stage, counts, max displacement, strain energy, reactions) and "
         "case.resolved.yaml (the case with every default filled in).",
     )
-    common(run)
+    _case_arguments(run)
     run.add_argument("-o", "--output", metavar="DIR", help="output directory "
                      "(default: output.directory of the case, else out/<case name>)")
     run.add_argument("--overwrite", action="store_true",
                      help="replace the results of an earlier run in the output directory")
     run.add_argument("-q", "--quiet", action="store_true", help="print nothing but errors")
 
+
+def _check_parser(sub) -> None:
     check = sub.add_parser(
         "check",
         help="validate a case and mesh it; print mesh statistics, boundary groups and plan",
         description="Validate the case, build the mesh, and print its statistics, element "
         "quality, named boundary groups and the plan of stages that would run. No solve.",
     )
-    common(check)
+    _case_arguments(check)
 
+
+def _study_parser(sub) -> None:
     study = sub.add_parser(
         "study",
         help="sweep a case over a grid of settings: error against wall time, CSV and plot",
@@ -88,7 +105,6 @@ def _parser() -> argparse.ArgumentParser:
                        help="runs in parallel (default: workers of the study file, else the "
                        "number of cores)")
     study.add_argument("-q", "--quiet", action="store_true", help="print nothing but errors")
-    return p
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -1,0 +1,232 @@
+"""Running the grid: each run is ``python -m fem_frac run`` in a process of its own."""
+
+from __future__ import annotations
+
+import concurrent.futures as cf
+import contextlib
+import json
+import os
+import signal
+import subprocess
+import sys
+import threading
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+
+from .analysis import evaluate, summary_value
+from .spec import Run, Study
+
+# The directory that holds the fem_frac package, for the runs' PYTHONPATH.
+_PACKAGE_ROOT = str(Path(__file__).resolve().parents[3])
+
+
+@dataclass
+class Result:
+    run: Run
+    status: str  # "ok", "skipped" (done earlier), "failed"
+    exit_code: int | None = None
+    message: str = ""
+    peak_mib: float | None = None
+    summary: dict | None = None
+    value: float | None = None  # the study quantity of this run
+    reference: float | None = None  # the value it is compared with
+    error: float | None = None
+
+    @property
+    def ok(self) -> bool:
+        return self.summary is not None
+
+    @property
+    def wall_s(self) -> float | None:
+        return self.summary["wall_time_s"]["total"] if self.summary else None
+
+    @property
+    def dofs(self) -> int | None:
+        return self.summary["counts"]["dofs"] if self.summary else None
+
+    @property
+    def h(self) -> float | None:
+        """Discretization size of the run: the study's ``refinement`` key if swept (default
+        ``mesh.element_size``), else dofs^(-1/3)."""
+        if self.run.size is not None:
+            return self.run.size
+        return self.dofs ** (-1 / 3) if self.dofs else None
+
+
+class _Children:
+    """The run processes alive, so that an interrupted study stops them."""
+
+    def __init__(self):
+        self.lock = threading.Lock()
+        self.procs: set[subprocess.Popen] = set()
+        self.stopped = False
+
+    def start(self, argv: list[str], env: dict) -> subprocess.Popen | None:
+        with self.lock:
+            if self.stopped:
+                return None
+            proc = subprocess.Popen(argv, env=env, stdin=subprocess.DEVNULL,
+                                    stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
+                                    text=True, errors="replace")
+            self.procs.add(proc)
+            return proc
+
+    def done(self, proc: subprocess.Popen) -> None:
+        with self.lock:
+            self.procs.discard(proc)
+
+    def stop(self) -> None:
+        with self.lock:
+            self.stopped = True
+            for proc in self.procs:
+                if proc.returncode is None:
+                    proc.terminate()
+
+
+def _wait(proc: subprocess.Popen) -> tuple[int, float | None]:
+    """Exit code (``-N``: killed by signal N) and peak resident memory (MiB) of ``proc``."""
+    if not hasattr(os, "wait4"):
+        return proc.wait(), None
+    try:
+        _, status, usage = os.wait4(proc.pid, 0)
+    except ChildProcessError:  # reaped by a concurrent poll() (an interrupted study)
+        return proc.wait(), None
+    proc.returncode = code = os.waitstatus_to_exitcode(status)
+    rss = usage.ru_maxrss
+    return code, (rss / (1024 * 1024) if sys.platform == "darwin" else rss / 1024)  # B vs KiB
+
+
+def execute(case_path: str, run_dir: str, overrides: tuple[str, ...],
+            children: _Children | None = None) -> dict:
+    """Run one case as ``fem-frac run`` in a fresh process (so that its peak memory is its
+    own). Returns ``{exit_code, message, peak_mib, process_s}`` and writes it to
+    ``run_dir/study_run.json``; ``exit_code`` is None for a process killed by a signal."""
+    argv = [sys.executable, "-m", "fem_frac", "run", case_path, "-o", run_dir, "-q",
+            "--overwrite"]
+    for o in overrides:
+        argv += ["--set", o]
+    path = os.environ.get("PYTHONPATH")
+    env = {**os.environ, "PYTHONPATH": _PACKAGE_ROOT + (os.pathsep + path if path else "")}
+    children = children or _Children()
+    t0 = time.perf_counter()
+    proc = children.start(argv, env)
+    if proc is None:
+        return {"exit_code": None, "message": "not run: the study was interrupted"}
+    try:
+        err = proc.stderr.read()
+        code, peak = _wait(proc)
+    finally:
+        proc.stderr.close()
+        children.done(proc)
+    lines = [ln for ln in err.splitlines() if ln.strip()]
+    errors = [ln for ln in lines if ln.startswith("error:")]
+    message = errors[-1] if errors else (lines[-1] if lines and code else "")
+    if code < 0:
+        try:
+            name = signal.Signals(-code).name
+        except ValueError:
+            name = f"signal {-code}"
+        code, message = None, f"killed by {name}" + (f": {message}" if message else "")
+    record = {"exit_code": code, "message": message.removeprefix("error: "),
+              "peak_mib": round(peak, 1) if peak is not None else None,
+              "process_s": round(time.perf_counter() - t0, 3)}
+    if Path(run_dir).is_dir():
+        (Path(run_dir) / "study_run.json").write_text(json.dumps(record, indent=2) + "\n")
+    return record
+
+
+def _load_summary(run_dir: Path) -> dict | None:
+    p = run_dir / "summary.json"
+    if not p.is_file():
+        return None
+    try:
+        return json.loads(p.read_text())
+    except (OSError, ValueError):
+        return None
+
+
+def _record(run_dir: Path) -> dict:
+    try:
+        return json.loads((run_dir / "study_run.json").read_text())
+    except (OSError, ValueError):
+        return {}
+
+
+def run_study(study: Study, out_dir: Path, workers: int | None = None,
+              log: Callable[[str], None] = lambda _m: None) -> list[Result]:
+    """Run every run of the study not finished earlier; returns the results in grid order."""
+    runs_dir = out_dir / "runs"
+    runs_dir.mkdir(parents=True, exist_ok=True)
+    n = len(study.runs)
+    results: dict[int, Result] = {}
+    todo = []
+    for run in study.runs:
+        summary = _load_summary(runs_dir / run.run_id)
+        if summary is None:
+            todo.append(run)
+            continue
+        peak = _record(runs_dir / run.run_id).get("peak_mib")
+        results[run.index] = Result(run, "skipped", 0, "", peak, summary)
+    if study.quantity is None:
+        evaluate(study, list(results.values()))
+    for done, r in enumerate(results.values(), start=1):
+        log(_progress(done, n, r))
+    workers = workers or study.spec.workers or os.cpu_count() or 1
+    workers = max(1, min(workers, len(todo) or 1))
+    with contextlib.closing(_run_all(study, todo, runs_dir, workers)) as finished:
+        for res in finished:
+            results[res.run.index] = res
+            if study.quantity is None:
+                evaluate(study, [res])
+            elif res.ok:
+                res.value = summary_value(res.summary, study.quantity)
+            log(_progress(len(results), n, res))
+    ordered = [results[r.index] for r in study.runs]
+    evaluate(study, ordered)
+    return ordered
+
+
+def _run_all(study: Study, todo: list[Run], runs_dir: Path, workers: int):
+    """Yield the result of each run of ``todo`` as it finishes, ``workers`` at a time."""
+    if not todo:
+        return
+    case_path = str(study.case_path)
+    children = _Children()
+    pool = cf.ThreadPoolExecutor(workers)
+    try:
+        futures = {pool.submit(execute, case_path, str(runs_dir / run.run_id), run.overrides,
+                               children): run for run in todo}
+        for fut in cf.as_completed(futures):
+            yield _result(futures[fut], fut, runs_dir)
+    finally:  # also on an interrupt: stop the runs under way, start no more
+        children.stop()
+        pool.shutdown(wait=True, cancel_futures=True)
+
+
+def _result(run: Run, fut: cf.Future, runs_dir: Path) -> Result:
+    try:
+        rec = fut.result()
+    except Exception as exc:  # the run could not be started (or waited for)
+        rec = {"exit_code": None, "message": f"run failed to start: {exc!r}"}
+    summary = _load_summary(runs_dir / run.run_id) if rec["exit_code"] == 0 else None
+    res = Result(run, "ok" if summary else "failed", rec["exit_code"],
+                 rec.get("message", ""), rec.get("peak_mib"), summary)
+    if rec["exit_code"] == 0 and summary is None:
+        res.message = "exit 0 but no summary.json"
+    return res
+
+
+def _progress(i: int, n: int, r: Result) -> str:
+    width = len(str(n))
+    head = f"run {i:>{width}}/{n}  {r.run.run_id}"
+    if not r.ok:
+        code = f"exit {r.exit_code}" if r.exit_code is not None else "crashed"
+        return f"{head}  FAILED ({code}): {r.message}"
+    if r.error is not None:
+        err = f"error {r.error:.3e}"
+    else:
+        err = f"value {r.value:.6g}" if r.value is not None else ""
+    extra = "  (done earlier, kept)" if r.status == "skipped" else ""
+    return f"{head}  {r.wall_s:7.2f} s  {err}{extra}"
