@@ -12,7 +12,7 @@ import pytest
 
 from fem_frac.errors import MeshError
 from fem_frac.mesh import exterior_facets, tet_volumes
-from fem_frac.mesh.mesh import facet_keys
+from fem_frac.mesh.mesh import SortedKeys, facet_keys, match
 from fem_frac.mesh.reader import read_mesh_file
 from meshes import structured_box
 
@@ -50,6 +50,20 @@ def gmsh_box_file(path: Path, version: float, binary: bool, order: int = 1) -> N
 def assert_valid(mesh) -> None:
     assert tet_volumes(mesh.points, mesh.tets).min() > 0
     assert np.array_equal(np.unique(mesh.tets), np.arange(mesh.n_points))  # compact
+
+
+def test_key_lookup_contract():
+    """match: the lowest row holding each key, -1 for a missing one; counts: how many."""
+    keys = np.array([7, 3, 9, 3, 1])
+    np.testing.assert_array_equal(match(keys, [3, 1, 4, 9, 10, 0]), [1, 4, -1, 2, -1, -1])
+    np.testing.assert_array_equal(SortedKeys(keys).counts([3, 9, 4]), [2, 1, 0])
+    np.testing.assert_array_equal(match(np.zeros(0, dtype=np.int64), [1, 2]), [-1, -1])
+    assert match(keys, np.zeros(0, dtype=np.int64)).shape == (0,)
+    # the structured keys facet_keys makes for meshes of 2M points and more
+    tri = np.array([[0, 1, 2], [5, 4, 3], [2, 1, 0], [6, 7, 8]])
+    table = facet_keys(tri, 3_000_000)
+    wanted = facet_keys(np.array([[3, 4, 5], [1, 2, 0], [0, 1, 3]]), 3_000_000)
+    np.testing.assert_array_equal(match(table, wanted), [1, 0, -1])
 
 
 @pytest.mark.parametrize(("version", "binary"), [(4.1, False), (4.1, True), (2.2, False)])

@@ -13,7 +13,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..mesh.mesh import Mesh, facet_keys
+from ..mesh.mesh import Mesh, edge_keys, facet_keys, match
 
 # Quadrature order per element order: exact for the stiffness of straight-sided tets
 # (P1: constant integrand, one point; P2: quadratic integrand, four points).
@@ -60,15 +60,11 @@ class Space:
 
     def facet_indices(self, triples: np.ndarray) -> np.ndarray:
         """scikit-fem facet ids of boundary triangles given as vertex triples ``(k, 3)``."""
-        keys = facet_keys(self.skmesh.facets.T, self.mesh.n_points)
-        order = np.argsort(keys)
-        wanted = facet_keys(triples, self.mesh.n_points)
-        pos = np.searchsorted(keys, wanted, sorter=order)
-        pos = np.minimum(pos, len(keys) - 1)
-        found = keys[order[pos]] == wanted
-        if not np.all(found):
-            raise ValueError(f"{np.count_nonzero(~found)} facets are not faces of the mesh")
-        return order[pos]
+        n = self.mesh.n_points
+        rows = match(facet_keys(self.skmesh.facets.T, n), facet_keys(triples, n))
+        if np.any(rows < 0):
+            raise ValueError(f"{np.count_nonzero(rows < 0)} facets are not faces of the mesh")
+        return rows
 
 
 def skfem_mesh(mesh: Mesh, order: int):
@@ -84,20 +80,12 @@ def skfem_mesh(mesh: Mesh, order: int):
     quadratic = MeshTet2.from_mesh(linear)
     doflocs = quadratic.doflocs.copy()
     # MeshTet2 dofs: vertices, then one mid-node per edge in the order of ``linear.edges``.
-    keys = _edge_keys(linear.edges.T, mesh.n_points)
-    order_ = np.argsort(keys)
-    wanted = _edge_keys(mesh.edges, mesh.n_points)
-    pos = order_[np.minimum(np.searchsorted(keys, wanted, sorter=order_), len(keys) - 1)]
-    ok = keys[pos] == wanted
+    pos = match(edge_keys(linear.edges.T, mesh.n_points), edge_keys(mesh.edges, mesh.n_points))
+    ok = pos >= 0
     doflocs[:, mesh.n_points + pos[ok]] = mesh.edge_points[ok].T
     from dataclasses import replace
 
     return replace(quadratic, doflocs=doflocs)
-
-
-def _edge_keys(pairs: np.ndarray, n_points: int) -> np.ndarray:
-    s = np.sort(np.asarray(pairs, dtype=np.int64), axis=1)
-    return s[:, 0] * np.int64(n_points) + s[:, 1]
 
 
 def build_space(mesh: Mesh, order: int) -> Space:

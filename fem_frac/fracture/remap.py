@@ -13,6 +13,7 @@ from dataclasses import replace
 import numpy as np
 
 from ..fem.space import Space
+from ..mesh.mesh import edge_keys, match
 from ..plasticity.return_map import PlasticState
 from .topology import Transfer
 
@@ -27,13 +28,10 @@ def node_transfer(old: Space, new: Space, transfer: Transfer) -> np.ndarray:
     if new.order == 1:
         return node_map
     n_old = old.mesh.n_points
-    old_edges = np.sort(np.asarray(old.skmesh.edges, dtype=np.int64).T, axis=1)
-    new_edges = np.sort(node_map[np.asarray(new.skmesh.edges, dtype=np.int64).T], axis=1)
-    old_keys = old_edges[:, 0] * np.int64(n_old) + old_edges[:, 1]
-    want = new_edges[:, 0] * np.int64(n_old) + new_edges[:, 1]
-    order = np.argsort(old_keys)
-    pos = order[np.minimum(np.searchsorted(old_keys, want, sorter=order), len(order) - 1)]
-    if not np.all(old_keys[pos] == want):
+    old_edges = np.asarray(old.skmesh.edges, dtype=np.int64).T
+    new_edges = node_map[np.asarray(new.skmesh.edges, dtype=np.int64).T]
+    pos = match(edge_keys(old_edges, n_old), edge_keys(new_edges, n_old))
+    if np.any(pos < 0):
         raise ValueError("an edge of the new mesh is not a copy of an edge of the old one")
     return np.concatenate([node_map, n_old + pos])
 

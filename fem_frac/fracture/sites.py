@@ -21,6 +21,8 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.sparse as sp
 
+from ..mesh.mesh import match
+
 # Candidates tested per vectorized block (in decreasing stress): a batch is usually full
 # long before every element over strength has been looked at.
 CHUNK = 256
@@ -95,9 +97,8 @@ def splits(points: np.ndarray, tets: np.ndarray, centroids: np.ndarray, s: Star,
     neighbour = adj.indices[np.concatenate([np.arange(a, b) for a, b in
                                             zip(adj.indptr[around], adj.indptr[around + 1],
                                                 strict=True)])]
-    position = np.searchsorted(around, neighbour)
-    position = np.minimum(position, around.size - 1)
-    inside = around[position] == neighbour
+    position = match(around, neighbour)
+    inside = position >= 0
     i, j = row[inside], position[inside]
     same = side[i] == side[j]
     i, j = i[same], j[same]

@@ -38,7 +38,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from ..fem.tensors import principal
-from ..mesh.mesh import TET_EDGES, tet_volumes
+from ..mesh.mesh import TET_EDGES, edge_keys, tet_volumes
 from .topology import face_adjacency
 
 METHODS = ("neighbours", "nodal")
@@ -52,8 +52,8 @@ def centroids(points: np.ndarray, tets: np.ndarray) -> np.ndarray:
 def mean_edge_length(points: np.ndarray, tets: np.ndarray) -> float:
     """Mean length of the distinct edges of the mesh (each edge counted once)."""
     points = np.asarray(points, dtype=float)
-    pairs = np.sort(np.asarray(tets, dtype=np.int64)[:, TET_EDGES].reshape(-1, 2), axis=1)
-    keys = np.unique(pairs[:, 0] * np.int64(points.shape[0]) + pairs[:, 1])
+    pairs = np.asarray(tets, dtype=np.int64)[:, TET_EDGES].reshape(-1, 2)
+    keys = np.unique(edge_keys(pairs, points.shape[0]))
     a, b = np.divmod(keys, np.int64(points.shape[0]))
     return float(np.linalg.norm(points[a] - points[b], axis=1).mean())
 

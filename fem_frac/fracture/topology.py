@@ -27,7 +27,16 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.csgraph import connected_components
 
-from ..mesh.mesh import TET_EDGES, TET_FACES, Mesh, facet_keys
+from ..mesh.mesh import (
+    TET_EDGES,
+    TET_FACES,
+    Mesh,
+    SortedKeys,
+    edge_keys,
+    exterior_face_rows,
+    facet_keys,
+    match,
+)
 
 CRACK = "crack"
 
@@ -171,15 +180,6 @@ def _split_plane(tets, points, vertex, normal, incidences) -> bool:
     return True
 
 
-def _exterior_rows(tets: np.ndarray, n_points: int) -> np.ndarray:
-    """Mask over the ``4 m`` face rows ``tets[:, TET_FACES]`` of faces held by one tet only:
-    the rows of :func:`~fem_frac.mesh.exterior_facets`, outward oriented, same order (by
-    integer keys, which sort far faster than ``np.unique(axis=0)`` on large meshes)."""
-    keys = facet_keys(np.asarray(tets)[:, TET_FACES].reshape(-1, 3), n_points)
-    _, inverse, counts = np.unique(keys, return_inverse=True, return_counts=True)
-    return counts[inverse.ravel()] == 1
-
-
 def _rebuild(old: Mesh, tets: np.ndarray, node_map: np.ndarray) -> tuple[Mesh, Transfer]:
     """The new mesh on ``tets`` (ids into ``old.points[node_map]``): boundaries re-expressed,
     the ``crack`` group extended by the newly exposed faces, curved edges remapped."""
@@ -188,25 +188,22 @@ def _rebuild(old: Mesh, tets: np.ndarray, node_map: np.ndarray) -> tuple[Mesh, T
 
     # every face of the new mesh, and its image in old ids
     faces = tets[:, TET_FACES].reshape(-1, 3)
-    image = facet_keys(node_map[faces], n_old)
-    sorter = np.argsort(image, kind="stable")  # ties: lowest tet first
+    image = SortedKeys(facet_keys(node_map[faces], n_old))  # ties: lowest tet first
 
     boundaries = {}
     for name, tri in old.boundaries.items():
         tri = np.asarray(tri, dtype=np.int64).reshape(-1, 3)
-        want = facet_keys(tri, n_old)
-        pos = np.minimum(np.searchsorted(image, want, sorter=sorter), len(image) - 1)
-        row = sorter[pos]
-        if tri.size and not np.all(image[row] == want):
+        row = image.rows(facet_keys(tri, n_old))
+        if np.any(row < 0):
             raise ValueError(f"boundary {name!r}: facets that are not faces of the mesh")
         f = faces[row]  # (k, 3) new ids, any order
         # keep the caller's vertex order (and so the orientation) of every triangle
-        match = node_map[f][:, None, :] == tri[:, :, None]  # (k, 3 caller, 3 face)
-        boundaries[name] = np.take_along_axis(f, np.argmax(match, axis=2), axis=1)
+        same = node_map[f][:, None, :] == tri[:, :, None]  # (k, 3 caller, 3 face)
+        boundaries[name] = np.take_along_axis(f, np.argmax(same, axis=2), axis=1)
 
-    outer_new = faces[_exterior_rows(tets, len(node_map))]
+    outer_new = faces[exterior_face_rows(tets, len(node_map))]
     old_faces = np.asarray(old.tets, dtype=np.int64)[:, TET_FACES].reshape(-1, 3)
-    outer_old = facet_keys(old_faces[_exterior_rows(old.tets, n_old)], n_old)
+    outer_old = facet_keys(old_faces[exterior_face_rows(old.tets, n_old)], n_old)
     exposed = outer_new[~np.isin(facet_keys(node_map[outer_new], n_old), outer_old)]
     boundaries[CRACK] = np.concatenate(
         [boundaries.get(CRACK, np.empty((0, 3), dtype=np.int64)), exposed]
@@ -215,12 +212,8 @@ def _rebuild(old: Mesh, tets: np.ndarray, node_map: np.ndarray) -> tuple[Mesh, T
     edges, edge_points = old.edges, old.edge_points
     if old.curved:
         pairs = np.unique(np.sort(tets[:, TET_EDGES].reshape(-1, 2), axis=1), axis=0)
-        key_old = old.edges[:, 0].astype(np.int64) * n_old + old.edges[:, 1]
-        o = np.argsort(key_old)
-        img = np.sort(node_map[pairs], axis=1)
-        want = img[:, 0] * np.int64(n_old) + img[:, 1]
-        pos = o[np.minimum(np.searchsorted(key_old, want, sorter=o), len(o) - 1)]
-        ok = key_old[pos] == want
+        pos = match(edge_keys(old.edges, n_old), edge_keys(node_map[pairs], n_old))
+        ok = pos >= 0
         edges, edge_points = pairs[ok], old.edge_points[pos[ok]]
 
     mesh = Mesh(

@@ -31,7 +31,7 @@ from contextlib import contextmanager
 import numpy as np
 
 from ..errors import MeshError
-from .mesh import Mesh, tet_volumes
+from .mesh import Mesh, SortedKeys, tet_volumes
 from .reader import curved_edges, outward_boundaries
 
 #: ``Mesh.Algorithm3D``: 10 = HXT (fast; repeatable single-threaded), 1 = Delaunay.
@@ -184,7 +184,7 @@ def model_to_mesh(order: int = 1) -> Mesh:
 
     boundaries: dict[str, np.ndarray] = {}
     subdomains: dict[str, np.ndarray] = {}
-    tet_order = np.argsort(tet_tags)
+    tet_rows = SortedKeys(tet_tags)
     for dim, tag in gmsh.model.getPhysicalGroups():
         name = gmsh.model.getPhysicalName(dim, tag) or f"physical_{tag}"
         entities = gmsh.model.getEntitiesForPhysicalGroup(dim, tag)
@@ -195,7 +195,7 @@ def model_to_mesh(order: int = 1) -> Mesh:
         elif dim == 3:
             tags = [_entity_elements(mesh_api, 3, e, (tet_type,))[0] for e in entities]
             tags = np.concatenate(tags) if tags else np.empty(0, dtype=np.int64)
-            ids = tet_order[np.searchsorted(tet_tags, tags, sorter=tet_order)]
+            ids = tet_rows.rows(tags)  # never -1: getElementsByType listed them all
             subdomains[name] = np.unique(_merge(subdomains.get(name), ids))
     for name, tris in boundaries.items():
         if np.any(tris < 0):

@@ -89,10 +89,17 @@ def exterior_facets(tets: np.ndarray) -> np.ndarray:
     tets = np.asarray(tets)
     faces = tets[:, TET_FACES].reshape(-1, 3)
     n = int(tets.max()) + 1 if tets.size else 0
+    return faces[exterior_face_rows(tets, n)]
+
+
+def exterior_face_rows(tets: np.ndarray, n_points: int) -> np.ndarray:
+    """Mask ``(4 m,)`` over the face rows ``tets[:, TET_FACES].reshape(-1, 3)`` of the faces
+    held by one tet only (``n_points``: any bound above the vertex ids)."""
+    faces = np.asarray(tets)[:, TET_FACES].reshape(-1, 3)
     # integer keys sort far faster than np.unique(axis=0) on rows
-    _, inverse, counts = np.unique(facet_keys(faces, n), return_inverse=True,
+    _, inverse, counts = np.unique(facet_keys(faces, n_points), return_inverse=True,
                                    return_counts=True)
-    return faces[counts[inverse.ravel()] == 1]
+    return counts[inverse.ravel()] == 1
 
 
 def facet_keys(triples: np.ndarray, n_points: int) -> np.ndarray:
@@ -102,3 +109,41 @@ def facet_keys(triples: np.ndarray, n_points: int) -> np.ndarray:
     if n_points < 2_000_000:
         return (s[:, 0] * n + s[:, 1]) * n + s[:, 2]
     return np.ascontiguousarray(s).view([("", np.int64)] * 3).ravel()
+
+
+def edge_keys(pairs: np.ndarray, n_points: int) -> np.ndarray:
+    """Order-independent integer key per vertex pair ``(k, 2)``, as :func:`facet_keys`."""
+    s = np.sort(np.asarray(pairs, dtype=np.int64), axis=1)
+    return s[:, 0] * np.int64(n_points) + s[:, 1]
+
+
+class SortedKeys:
+    """A table of keys ``(n,)`` (e.g. :func:`facet_keys`) sorted once for look-ups.
+
+    The sort is stable, so among equal keys the lowest row is found first.
+    """
+
+    def __init__(self, keys: np.ndarray):
+        self.keys = np.asarray(keys)
+        self.order = np.argsort(self.keys, kind="stable")
+        self._sorted = self.keys[self.order]
+
+    def rows(self, wanted: np.ndarray) -> np.ndarray:
+        """For each of ``wanted (k,)`` the lowest row of the table holding it; -1 where
+        none does (callers decide whether a missing key is an error)."""
+        wanted = np.asarray(wanted)
+        if self._sorted.size == 0:
+            return np.full(wanted.shape[0], -1, dtype=np.intp)
+        pos = np.minimum(np.searchsorted(self._sorted, wanted), self._sorted.size - 1)
+        return np.where(self._sorted[pos] == wanted, self.order[pos], -1)
+
+    def counts(self, wanted: np.ndarray) -> np.ndarray:
+        """How many rows of the table hold each of ``wanted (k,)``."""
+        left = np.searchsorted(self._sorted, wanted, side="left")
+        return np.searchsorted(self._sorted, wanted, side="right") - left
+
+
+def match(keys: np.ndarray, wanted: np.ndarray) -> np.ndarray:
+    """Rows of ``keys (n,)`` holding ``wanted (k,)``: the lowest such row, -1 where none
+    (:meth:`SortedKeys.rows`; build a :class:`SortedKeys` to look up many times)."""
+    return SortedKeys(keys).rows(wanted)

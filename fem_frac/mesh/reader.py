@@ -24,7 +24,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import MeshError
-from .mesh import TET_FACES, Mesh, facet_keys, tet_volumes
+from .mesh import TET_FACES, Mesh, SortedKeys, facet_keys, tet_volumes
 
 _TET_TYPES = ("tetra", "tetra10")
 _TRI_TYPES = ("triangle", "triangle6")
@@ -152,22 +152,17 @@ def outward_boundaries(
     if not boundaries:
         return {}
     faces = tets[:, TET_FACES].reshape(-1, 3)
-    keys = facet_keys(faces, n_points)
-    order = np.argsort(keys, kind="stable")
-    sorted_keys = keys[order]
-    last = len(sorted_keys) - 1
+    table = SortedKeys(facet_keys(faces, n_points))
     out = {}
     for name, tris in boundaries.items():
         wanted = facet_keys(tris, n_points)
-        pos = np.minimum(np.searchsorted(sorted_keys, wanted), last)
-        found = sorted_keys[pos] == wanted
-        if not np.all(found):
+        row = table.rows(wanted)
+        if np.any(row < 0):
             raise MeshError(
-                f"boundary {name!r}: {np.count_nonzero(~found)} triangles are not tet faces"
+                f"boundary {name!r}: {np.count_nonzero(row < 0)} triangles are not tet faces"
             )
-        nxt = np.minimum(pos + 1, last)
-        exterior = (pos == last) | (sorted_keys[nxt] != wanted)
-        out[name] = np.where(exterior[:, None], faces[order[pos]], tris).astype(np.int64)
+        exterior = table.counts(wanted) == 1
+        out[name] = np.where(exterior[:, None], faces[row], tris).astype(np.int64)
     return out
 
 
