@@ -32,7 +32,7 @@ import numpy as np
 
 from ..errors import MeshError
 from .mesh import Mesh, SortedKeys, tet_volumes
-from .reader import curved_edges, outward_boundaries
+from .reader import compact_corners, curved_edges, outward_boundaries
 
 #: ``Mesh.Algorithm3D``: 10 = HXT (fast; repeatable single-threaded), 1 = Delaunay.
 ALGORITHM_3D = 10
@@ -149,28 +149,10 @@ def model_to_mesh(order: int = 1) -> Mesh:
     import gmsh
 
     mesh_api = gmsh.model.mesh
-    types_3d = set(int(t) for t in mesh_api.getElementTypes(dim=3))
-    tet_type = _TET10 if order == 2 else _TET
-    other = types_3d - {tet_type}
-    if other:
-        names = ", ".join(mesh_api.getElementProperties(t)[0] for t in sorted(other))
-        raise MeshError(f"the 3D mesh has non-tetrahedral (or other-order) elements: {names}")
-    if tet_type not in types_3d:
-        raise MeshError("gmsh produced no tetrahedra (is the geometry a closed volume?)")
-
-    node_tags, coords, _ = mesh_api.getNodes(returnParametricCoord=False)
-    node_tags = np.asarray(node_tags, dtype=np.int64)
-    row = np.full(node_tags.max() + 1, -1, dtype=np.int64)
-    row[node_tags] = np.arange(node_tags.size)
-    xyz = np.asarray(coords, dtype=np.float64).reshape(-1, 3)
-
-    tet_tags, tet_nodes = mesh_api.getElementsByType(tet_type)
-    tet_tags = np.asarray(tet_tags, dtype=np.int64)
-    tet_nodes = np.asarray(tet_nodes, dtype=np.int64).reshape(tet_tags.size, -1)
-
-    corner_tags = np.unique(tet_nodes[:, :4])
-    new_id = np.full(row.size, -1, dtype=np.int64)
-    new_id[corner_tags] = np.arange(corner_tags.size)
+    tet_type = _tet_type(mesh_api, order)
+    row, xyz = _nodes(mesh_api)
+    tet_tags, tet_nodes = _entity_elements(mesh_api, 3, -1, (tet_type,))
+    corner_tags, new_id = compact_corners(tet_nodes[:, :4], row.size)
     points = xyz[row[corner_tags]]
     tets = new_id[tet_nodes[:, :4]]
 
@@ -181,6 +163,42 @@ def model_to_mesh(order: int = 1) -> Mesh:
 
     inverted = tet_volumes(points, tets) < 0
     tets[inverted] = tets[inverted][:, [0, 2, 1, 3]]
+
+    boundaries, subdomains = _physical_groups(mesh_api, tet_type, tet_tags, new_id)
+    boundaries = outward_boundaries(tets, len(points), boundaries)
+    return Mesh(points, tets, boundaries, subdomains, edges, edge_points)
+
+
+def _nodes(mesh_api) -> tuple[np.ndarray, np.ndarray]:
+    """``(row, xyz)``: node positions ``xyz (k, 3)`` and, for every gmsh node tag up to the
+    largest, its row in ``xyz`` (-1 for a tag no node has)."""
+    node_tags, coords, _ = mesh_api.getNodes(returnParametricCoord=False)
+    node_tags = np.asarray(node_tags, dtype=np.int64)
+    row = np.full(node_tags.max() + 1, -1, dtype=np.int64)
+    row[node_tags] = np.arange(node_tags.size)
+    return row, np.asarray(coords, dtype=np.float64).reshape(-1, 3)
+
+
+def _tet_type(mesh_api, order: int) -> int:
+    """The gmsh type of the tets of an ``order`` mesh; :class:`MeshError` when the 3D mesh
+    has none or holds other elements."""
+    types_3d = set(int(t) for t in mesh_api.getElementTypes(dim=3))
+    tet_type = _TET10 if order == 2 else _TET
+    other = types_3d - {tet_type}
+    if other:
+        names = ", ".join(mesh_api.getElementProperties(t)[0] for t in sorted(other))
+        raise MeshError(f"the 3D mesh has non-tetrahedral (or other-order) elements: {names}")
+    if tet_type not in types_3d:
+        raise MeshError("gmsh produced no tetrahedra (is the geometry a closed volume?)")
+    return tet_type
+
+
+def _physical_groups(mesh_api, tet_type: int, tet_tags: np.ndarray,
+                     new_id: np.ndarray) -> tuple[dict, dict]:
+    """Boundaries (name -> corner triples in new ids, -1 for a node that is no tet corner)
+    and subdomains (name -> tet ids, rows of ``tet_tags``) of the physical groups; groups of
+    the same name are merged."""
+    import gmsh
 
     boundaries: dict[str, np.ndarray] = {}
     subdomains: dict[str, np.ndarray] = {}
@@ -197,11 +215,7 @@ def model_to_mesh(order: int = 1) -> Mesh:
             tags = np.concatenate(tags) if tags else np.empty(0, dtype=np.int64)
             ids = tet_rows.rows(tags)  # never -1: getElementsByType listed them all
             subdomains[name] = np.unique(_merge(subdomains.get(name), ids))
-    for name, tris in boundaries.items():
-        if np.any(tris < 0):
-            raise MeshError(f"boundary {name!r} has vertices that are not tet corners")
-    boundaries = outward_boundaries(tets, len(points), boundaries)
-    return Mesh(points, tets, boundaries, subdomains, edges, edge_points)
+    return boundaries, subdomains
 
 
 def _entity_elements(mesh_api, dim: int, tag: int, types: tuple[int, ...]):

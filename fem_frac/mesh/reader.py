@@ -46,43 +46,16 @@ def read_mesh_file(path: str | Path, order_hint: int | None = None) -> Mesh:
     renumbered in file order. Tets that are all negatively oriented are flipped; mixed
     orientation or zero-volume tets raise :class:`MeshError`.
     """
-    import meshio
-
     path = Path(path)
-    # meshio tries every format an extension may mean (.msh: ansys, then gmsh), prints each
-    # failure to stdout and calls sys.exit(1) when none works: name gmsh for .msh, capture the
-    # chatter, and turn SystemExit into a MeshError.
-    file_format = "gmsh" if path.suffix.lower() == ".msh" else None
-    chatter = io.StringIO()
-    try:
-        with contextlib.redirect_stdout(chatter), contextlib.redirect_stderr(chatter):
-            raw = meshio.read(path, file_format=file_format)
-    except (Exception, SystemExit) as exc:  # ReadError, KeyError, ValueError, SystemExit...
-        text = str(exc) if not isinstance(exc, SystemExit) else chatter.getvalue()
-        reason = " ".join(text.replace("Error:", " ").split()) or type(exc).__name__
-        raise MeshError(f"{path}: cannot read mesh file: {reason}") from None
-
+    raw = _read_meshio(path)
     blocks = list(raw.cells)
-    tet_blocks = [i for i, b in enumerate(blocks) if b.type in _TET_TYPES]
-    if not tet_blocks:
-        types = ", ".join(sorted({b.type for b in blocks})) or "none"
-        hint = ""
-        if file_format == "gmsh" and raw.field_data:
-            hint = (
-                "; gmsh saves only elements of physical groups: add a Physical Volume"
-                " (or set Mesh.SaveAll = 1)"
-            )
-        raise MeshError(f"{path}: no tetrahedra (cell types: {types}){hint}")
-
-    corner_nodes = np.concatenate([blocks[i].data[:, :4] for i in tet_blocks]).astype(np.int64)
-    used = np.unique(corner_nodes)
-    new_id = np.full(len(raw.points), -1, dtype=np.int64)
-    new_id[used] = np.arange(used.size)
+    tet_blocks = _tet_blocks(path, raw, blocks)
     xyz = np.asarray(raw.points, dtype=np.float64)
     if xyz.shape[1] != 3:
         raise MeshError(f"{path}: points are {xyz.shape[1]}-dimensional, expected 3")
+    corner_nodes = np.concatenate([blocks[i].data[:, :4] for i in tet_blocks]).astype(np.int64)
+    used, new_id = compact_corners(corner_nodes, len(xyz))
     points = xyz[used]
-    tets = new_id[corner_nodes]
 
     edges = edge_points = None
     quadratic = [i for i in tet_blocks if blocks[i].type == "tetra10"]
@@ -92,27 +65,14 @@ def read_mesh_file(path: str | Path, order_hint: int | None = None) -> Mesh:
             points, new_id[t10[:, :4]], xyz[t10[:, 4:]], VTK_TET10_EDGES
         )
 
-    tets = _checked_orientation(path, points, tets)
-
-    # block index -> offset of its tets in ``tets``
-    sizes = [len(blocks[i].data) for i in tet_blocks]
-    tet_offset = dict(zip(tet_blocks, np.cumsum([0, *sizes[:-1]]), strict=True))
+    tets = _checked_orientation(path, points, new_id[corner_nodes])
     boundary_parts, subdomain_parts = _groups(raw, blocks)
-    boundaries = {}
-    for name, parts in boundary_parts.items():
-        tris = np.concatenate([blocks[i].data[rows, :3] for i, rows in parts]).astype(np.int64)
-        tris = new_id[tris]
-        if np.any(tris < 0):
-            raise MeshError(f"{path}: boundary {name!r} has vertices that are not tet corners")
-        boundaries[name] = tris
     try:
-        boundaries = outward_boundaries(tets, len(points), boundaries)
+        boundaries = outward_boundaries(tets, len(points),
+                                        _boundary_triples(blocks, boundary_parts, new_id))
     except MeshError as exc:
         raise MeshError(f"{path}: {exc}") from None
-    subdomains = {
-        name: np.unique(np.concatenate([tet_offset[i] + rows for i, rows in parts]))
-        for name, parts in subdomain_parts.items()
-    }
+    subdomains = _subdomain_tets(blocks, tet_blocks, subdomain_parts)
     return Mesh(points, tets, boundaries, subdomains, edges, edge_points)
 
 
@@ -139,16 +99,29 @@ def curved_edges(
     return pairs[curved], mids[curved]
 
 
+def compact_corners(corners: np.ndarray, n_nodes: int) -> tuple[np.ndarray, np.ndarray]:
+    """The node ids ``corners`` (any shape) uses, ascending ``(n,)``, and the map ``(n_nodes,)``
+    from a node id to its new id ``0..n-1`` (-1 for a node that is no tet corner)."""
+    used = np.unique(corners)
+    new_id = np.full(n_nodes, -1, dtype=np.int64)
+    new_id[used] = np.arange(used.size)
+    return used, new_id
+
+
 def outward_boundaries(
     tets: np.ndarray, n_points: int, boundaries: dict[str, np.ndarray]
 ) -> dict[str, np.ndarray]:
     """Check every boundary triangle is a tet face; orient the exterior ones outward.
 
-    ``tets`` (n_tets, 4) positively oriented; ``boundaries`` name -> (k, 3) vertex triples.
-    Facets on the exterior get the outward orientation of their tet (as
-    :func:`~fem_frac.mesh.mesh.exterior_facets`); interior ones (interfaces) keep theirs.
-    Raises :class:`MeshError` for a triangle that is no face of any tet.
+    ``tets`` (n_tets, 4) positively oriented; ``boundaries`` name -> (k, 3) vertex triples,
+    -1 for a node that is no tet corner (see :func:`compact_corners`). Facets on the exterior
+    get the outward orientation of their tet (as :func:`~fem_frac.mesh.mesh.exterior_facets`);
+    interior ones (interfaces) keep theirs. Raises :class:`MeshError` for a triangle that is
+    no face of any tet, first for one with a vertex that is no tet corner.
     """
+    for name, tris in boundaries.items():
+        if np.any(tris < 0):
+            raise MeshError(f"boundary {name!r} has vertices that are not tet corners")
     if not boundaries:
         return {}
     faces = tets[:, TET_FACES].reshape(-1, 3)
@@ -167,6 +140,61 @@ def outward_boundaries(
 
 
 # --- file-specific helpers ---------------------------------------------------------------------
+
+
+def _read_meshio(path: Path):
+    """``meshio.read`` with its chatter captured; any failure is one :class:`MeshError`."""
+    import meshio
+
+    # meshio tries every format an extension may mean (.msh: ansys, then gmsh), prints each
+    # failure to stdout and calls sys.exit(1) when none works: name gmsh for .msh, capture the
+    # chatter, and turn SystemExit into a MeshError.
+    chatter = io.StringIO()
+    try:
+        with contextlib.redirect_stdout(chatter), contextlib.redirect_stderr(chatter):
+            return meshio.read(path, file_format=_file_format(path))
+    except (Exception, SystemExit) as exc:  # ReadError, KeyError, ValueError, SystemExit...
+        text = str(exc) if not isinstance(exc, SystemExit) else chatter.getvalue()
+        reason = " ".join(text.replace("Error:", " ").split()) or type(exc).__name__
+        raise MeshError(f"{path}: cannot read mesh file: {reason}") from None
+
+
+def _file_format(path: Path) -> str | None:
+    return "gmsh" if path.suffix.lower() == ".msh" else None
+
+
+def _tet_blocks(path: Path, raw, blocks) -> list[int]:
+    """Indices of the tet cell blocks; :class:`MeshError` when there is none."""
+    tet_blocks = [i for i, b in enumerate(blocks) if b.type in _TET_TYPES]
+    if not tet_blocks:
+        types = ", ".join(sorted({b.type for b in blocks})) or "none"
+        hint = ""
+        if _file_format(path) == "gmsh" and raw.field_data:
+            hint = (
+                "; gmsh saves only elements of physical groups: add a Physical Volume"
+                " (or set Mesh.SaveAll = 1)"
+            )
+        raise MeshError(f"{path}: no tetrahedra (cell types: {types}){hint}")
+    return tet_blocks
+
+
+def _boundary_triples(blocks, parts: dict, new_id: np.ndarray) -> dict[str, np.ndarray]:
+    """Boundary name -> corner triples ``(k, 3)`` in new ids (-1: no tet corner)."""
+    out = {}
+    for name, rows_of in parts.items():
+        tris = np.concatenate([blocks[i].data[rows, :3] for i, rows in rows_of])
+        out[name] = new_id[tris.astype(np.int64)]
+    return out
+
+
+def _subdomain_tets(blocks, tet_blocks: list[int], parts: dict) -> dict[str, np.ndarray]:
+    """Subdomain name -> tet ids: a block's rows offset by the tets of the blocks before."""
+    sizes = [len(blocks[i].data) for i in tet_blocks]
+    tet_offset = dict(zip(tet_blocks, np.cumsum([0, *sizes[:-1]]), strict=True))
+    return {
+        name: np.unique(np.concatenate([tet_offset[i] + rows for i, rows in rows_of]))
+        for name, rows_of in parts.items()
+    }
 
 
 def _checked_orientation(path: Path, points: np.ndarray, tets: np.ndarray) -> np.ndarray:

@@ -115,74 +115,92 @@ def build_problem(
     from .loading import resolve_curves
 
     analysis = analysis if analysis is not None else schema.StaticAnalysis()
-    curve_keys = [(("boundary_conditions", i, "curve"), getattr(bc, "curve", None))
-                  for i, bc in enumerate(conditions)]
-    if body_force is not None:
-        curve_keys.append((("body_force", "curve"), body_force.curve))
-    names, curves, curve_of = resolve_curves(curve_keys, load_curves or {}, analysis)
+    names, curves, curve_of = resolve_curves(_curve_keys(conditions, body_force),
+                                             load_curves or {}, analysis)
     exterior = outer_facets(space.mesh)
-    dof_chunks, value_chunks, curve_chunks = [], [], []
     forces = np.zeros((len(names), space.n_dofs))
     groups: dict[str, np.ndarray] = {}
-    described = []
+    described, supports = [], []
     for i, bc in enumerate(conditions):
         facets = _select(space, bc, i, exterior, strict)
-        if len(facets) == 0:  # (only when not strict)
-            if not isinstance(bc, (schema.Traction, schema.Pressure)):
-                groups[_label(bc, i)] = np.zeros(0, dtype=np.int64)
-            described.append(f"{bc.type} on {_label(bc, i)} (no faces left)")
-            continue
+        label = _label(bc, i)
         timing = f", curve {names[curve_of[i]]}" if hasattr(bc, "curve") else ""
-        if isinstance(bc, (schema.Traction, schema.Pressure)):
-            if isinstance(bc, schema.Traction):
-                forces[curve_of[i]] += loads.surface_load(space, facets, traction=bc.traction)
-            else:
-                forces[curve_of[i]] += loads.surface_load(space, facets, pressure=bc.pressure)
-            described.append(f"{bc.type} on {_label(bc, i)} ({len(facets)} faces{timing})")
-            continue
-        nodes = loads.surface_nodes(space, facets)
-        if isinstance(bc, schema.Fixed):
-            comps = {0: 0.0, 1: 0.0, 2: 0.0}
-        elif isinstance(bc, schema.Displacement):
-            comps = {k: v for k, v in enumerate((bc.x, bc.y, bc.z)) if v is not None}
-        else:  # symmetry
-            axis = loads.mean_normal_axis(space, facets)
-            if axis is None:
-                raise CaseError(
-                    ("boundary_conditions", i, "boundary"),
-                    f"symmetry needs a plane normal to x, y or z; {_label(bc, i)} is not",
-                )
-            comps = {axis: 0.0}
-        for comp, value in comps.items():
-            dof_chunks.append(3 * nodes + comp)
-            value_chunks.append(np.full(len(nodes), value))
-            curve_chunks.append(np.full(len(nodes), curve_of[i]))
-        groups[_label(bc, i)] = (3 * nodes[:, None] + np.arange(3)).ravel()
-        fixed = "".join(AXES[c] for c in comps)
-        described.append(
-            f"{bc.type} ({fixed}) on {_label(bc, i)} ({len(nodes)} nodes{timing})"
-        )
-    if dof_chunks:
-        all_dofs = np.concatenate(dof_chunks)
-        all_values = np.concatenate(value_chunks)
-        all_curves = np.concatenate(curve_chunks)
-        # keep the last occurrence of each dof: unique on the reversed arrays
-        dofs, first = np.unique(all_dofs[::-1], return_index=True)
-        values = all_values[::-1][first]
-        curve = all_curves[::-1][first]
-    else:
-        dofs, values = np.zeros(0, dtype=np.int64), np.zeros(0)
-        curve = np.zeros(0, dtype=np.int64)
+        if len(facets) == 0:  # (only when not strict)
+            if not isinstance(bc, _LOADS):
+                groups[label] = np.zeros(0, dtype=np.int64)
+            described.append(f"{bc.type} on {label} (no faces left)")
+        elif isinstance(bc, _LOADS):
+            forces[curve_of[i]] += _surface_force(space, bc, facets)
+            described.append(f"{bc.type} on {label} ({len(facets)} faces{timing})")
+        else:
+            nodes, comps = _supported(space, bc, i, facets)
+            supports.append((nodes, comps, curve_of[i]))
+            groups[label] = (3 * nodes[:, None] + np.arange(3)).ravel()
+            fixed = "".join(AXES[c] for c in comps)
+            described.append(f"{bc.type} ({fixed}) on {label} ({len(nodes)} nodes{timing})")
     if body_force is not None:
-        if density is None or not np.all(np.isfinite(density)):
-            raise CaseError(("body_force", "gravity"),
-                            "gravity needs material.density (for every element)")
-        g = np.asarray(body_force.gravity)
-        rho = np.asarray(density, dtype=float)
-        forces[curve_of[-1]] += loads.body_load(space, rho[:, None] * g if rho.ndim else rho * g)
+        forces[curve_of[-1]] += _gravity(space, body_force, density)
         described.append(f"gravity {tuple(body_force.gravity)}, curve {names[curve_of[-1]]}")
-    return Problem(space, Constraints(dofs, values, curve), forces, curves, names, groups,
-                   described)
+    return Problem(space, _constraints(supports), forces, curves, names, groups, described)
+
+
+# conditions that load the surface (the others prescribe displacements)
+_LOADS = (schema.Traction, schema.Pressure)
+
+
+def _curve_keys(conditions: list, body_force) -> list[tuple]:
+    """(case key, curve name or None) of every condition, then of the body force."""
+    keys = [(("boundary_conditions", i, "curve"), getattr(bc, "curve", None))
+            for i, bc in enumerate(conditions)]
+    if body_force is not None:
+        keys.append((("body_force", "curve"), body_force.curve))
+    return keys
+
+
+def _surface_force(space: Space, bc, facets: np.ndarray) -> np.ndarray:
+    """Nodal force ``(n_dofs,)`` of a traction or pressure at curve factor 1."""
+    if isinstance(bc, schema.Traction):
+        return loads.surface_load(space, facets, traction=bc.traction)
+    return loads.surface_load(space, facets, pressure=bc.pressure)
+
+
+def _supported(space: Space, bc, index: int, facets: np.ndarray) -> tuple[np.ndarray, dict]:
+    """Scalar nodes of the faces and the prescribed value of each constrained component."""
+    nodes = loads.surface_nodes(space, facets)
+    if isinstance(bc, schema.Fixed):
+        return nodes, {0: 0.0, 1: 0.0, 2: 0.0}
+    if isinstance(bc, schema.Displacement):
+        return nodes, {k: v for k, v in enumerate((bc.x, bc.y, bc.z)) if v is not None}
+    axis = loads.mean_normal_axis(space, facets)  # symmetry
+    if axis is None:
+        raise CaseError(
+            ("boundary_conditions", index, "boundary"),
+            f"symmetry needs a plane normal to x, y or z; {_label(bc, index)} is not",
+        )
+    return nodes, {axis: 0.0}
+
+
+def _constraints(supports: list[tuple]) -> Constraints:
+    """Constraints of the ``(nodes, {component: value}, curve)`` supports in case order; a dof
+    prescribed twice keeps the later value."""
+    chunks = [(3 * nodes + comp, np.full(len(nodes), value), np.full(len(nodes), curve))
+              for nodes, comps, curve in supports for comp, value in comps.items()]
+    if not chunks:
+        return Constraints(np.zeros(0, dtype=np.int64), np.zeros(0), np.zeros(0, dtype=np.int64))
+    all_dofs, all_values, all_curves = (np.concatenate(c) for c in zip(*chunks, strict=True))
+    # keep the last occurrence of each dof: unique on the reversed arrays
+    dofs, first = np.unique(all_dofs[::-1], return_index=True)
+    return Constraints(dofs, all_values[::-1][first], all_curves[::-1][first])
+
+
+def _gravity(space: Space, body_force, density) -> np.ndarray:
+    """Nodal force ``(n_dofs,)`` of gravity at curve factor 1 (density per element or one)."""
+    if density is None or not np.all(np.isfinite(density)):
+        raise CaseError(("body_force", "gravity"),
+                        "gravity needs material.density (for every element)")
+    g = np.asarray(body_force.gravity)
+    rho = np.asarray(density, dtype=float)
+    return loads.body_load(space, rho[:, None] * g if rho.ndim else rho * g)
 
 
 def free_rigid_modes(space: Space, constrained: np.ndarray,
