@@ -81,6 +81,11 @@ def _divide_rows(w: sp.csr_matrix) -> None:
     w.data /= np.bincount(row, weights=w.data, minlength=w.shape[0])[row]
 
 
+def _face_steps(tets: np.ndarray) -> sp.csr_matrix:
+    """Pattern ``(m, m)`` of one step through a shared face, or none (the diagonal)."""
+    return _pattern(face_adjacency(tets) + sp.identity(tets.shape[0], format="csr"))
+
+
 def _length_neighbourhoods(step: sp.csr_matrix, c: np.ndarray, length: float,
                            rows: np.ndarray | None = None) -> sp.csr_matrix:
     """Pattern of pairs ``(i, j)`` joined by a path of ``step`` (which holds the diagonal)
@@ -140,7 +145,7 @@ def update_operator(operator: sp.csr_matrix, points: np.ndarray, tets: np.ndarra
     tets = np.asarray(tets, dtype=np.int64)
     m = tets.shape[0]
     c = centroids(points, tets)
-    step = _pattern(face_adjacency(tets) + sp.identity(m, format="csr"))
+    step = _face_steps(tets)
     x = points[tets]
     diameters = np.max(np.linalg.norm(x[:, TET_EDGES[:, 0]] - x[:, TET_EDGES[:, 1]], axis=2),
                        axis=1)
@@ -224,14 +229,11 @@ def smoothing_operator(
     tets = np.asarray(tets, dtype=np.int64)
     m = tets.shape[0]
     volumes = np.abs(tet_volumes(points, tets))
-    identity = sp.identity(m, dtype=float, format="csr")
 
     if method == "neighbours":
-        step = _pattern(face_adjacency(tets) + identity)
+        step = _face_steps(tets)
         if rings is not None:
-            reach = identity
-            for _ in range(int(rings)):
-                reach = _pattern(reach @ step)
+            reach = _ring_neighbourhoods(step, int(rings), np.arange(m))
         else:
             reach = _length_neighbourhoods(step, centroids(points, tets), float(length))
         return _volume_weighted(reach, volumes)
@@ -242,7 +244,7 @@ def smoothing_operator(
         r = max(1, int(np.ceil(float(length) / mean_edge_length(points, tets))))
     a, b = _vertex_projection(points, tets, volumes)
     once = sp.csr_matrix(b @ a)
-    out = identity
+    out = sp.identity(m, dtype=float, format="csr")
     for _ in range(r):
         out = sp.csr_matrix(out @ once)
     out.sort_indices()
