@@ -10,13 +10,14 @@ import numpy as np
 from .. import __version__
 from ..config.loader import Source
 from ..config.schema import Case, DynamicAnalysis
-from ..errors import CaseError
 from ..fem.loads import facet_basis
-from ..mesh.build import mesh_file_path
+from ..mesh.build import build_mesh, mesh_file_path
 from ..mesh.mesh import min_dihedral_angles
 from ..mesh.selection import boundary_names, named_facets
+from ..solve.discretization import check_model, model_on
+from ..solve.loading import time_grid
 from ..timing import StageTimer
-from .driver import build_model, check_stages
+from .driver import check_stages, recipe_of
 from .plan import format_plan, make_plan
 
 # Tets with a smaller minimum dihedral angle than this are reported as poorly shaped.
@@ -32,8 +33,11 @@ def check_report(case: Case, source: Source) -> str:
     """Validate, mesh and resolve supports and loads; describe the result. No solve."""
     timer = StageTimer()
     check_stages(case)
-    model = build_model(case, source.path.parent, timer)
-    mesh, space = model.mesh, model.space
+    with timer("mesh"):
+        mesh = build_mesh(case.mesh, source.path.parent)
+    recipe = recipe_of(case, time_grid(case.analysis).dt)
+    space, materials, problem = model_on(recipe, mesh, timer)
+    check_model(recipe, space, materials, problem)
     angles = min_dihedral_angles(mesh.points, mesh.tets)
     lo, hi = mesh.points.min(axis=0), mesh.points.max(axis=0)
     volume = float(space.basis.dx.sum())
@@ -56,7 +60,7 @@ def check_report(case: Case, source: Source) -> str:
         lines.append(f"  {name:<18} {len(triples):>8,} faces   area {area:.6g}")
     if case.regions:
         lines.append("regions")
-        for i, (region, count) in enumerate(zip(case.regions, model.materials.counts,
+        for i, (region, count) in enumerate(zip(case.regions, materials.counts,
                                                 strict=True)):
             where = (f"subdomain {region.subdomain}" if region.subdomain is not None
                      else f"box {list(region.box.min)} to {list(region.box.max)}")
@@ -65,37 +69,30 @@ def check_report(case: Case, source: Source) -> str:
                 if v is not None)
             lines.append(f"  [{i}] {where}: {count:,} tets; {values}")
     lines.append("supports and loads")
-    lines += [f"  {d}" for d in model.problem.descriptions] or ["  (none)"]
+    lines += [f"  {d}" for d in problem.descriptions] or ["  (none)"]
     if case.fracture is not None:
-        lines += _fracture_lines(case, model)
+        lines += _fracture_lines(case, mesh)
     if isinstance(case.analysis, DynamicAnalysis):
-        lines += _time_step_lines(case, model)
+        lines += _time_step_lines(recipe, space, materials, problem)
     lines.append("plan")
     lines.append(format_plan(make_plan(case)))
     return "\n".join(lines)
 
 
-def _time_step_lines(case: Case, model) -> list[str]:
+def _time_step_lines(recipe, space, materials, problem) -> list[str]:
     """The stable step of central difference (and how the case's dt compares)."""
     from ..fem.mass import lumped_mass
     from ..plasticity.law import material_law
-    from ..solve.loading import time_grid
-    from ..solve.stable_step import explicit_limit
-    from .driver import Constrained, build_operators, explicit_substeps
+    from ..solve.constrained import Constrained
+    from ..solve.discretization import build_operators, explicit_substeps
+    from ..solve.stable_step import stable_limit
 
-    m = model.materials
-    if not m.has_density():
-        raise CaseError(("material", "density"), "a dynamic analysis needs material.density "
-                        "(for every element)")
-    analysis = case.analysis
-    ops = build_operators(model, case, material_law(m, None), StageTimer())
-    r = analysis.rayleigh
-    limit = explicit_limit(
-        model.space, ops.stiffness, lumped_mass(model.space, m.density),
-        Constrained(model.problem, "auto").free, m.youngs_modulus, m.poissons_ratio,
-        m.density, r.mass if r else 0.0, r.stiffness if r else 0.0,
-    )
-    dt = time_grid(analysis).dt
+    analysis = recipe.analysis
+    ops = build_operators(recipe, space, materials, material_law(materials, None),
+                          StageTimer())
+    limit = stable_limit(space, ops.stiffness, lumped_mass(space, materials.density),
+                         Constrained(problem, "auto").free, materials, analysis.rayleigh)
+    dt = recipe.dt
     verdict = ""
     if analysis.integrator == "central_difference":
         substeps = explicit_substeps(limit, dt, analysis.substeps)  # refuses as run does
@@ -130,12 +127,12 @@ def resolved_yaml(case: Case, source: Source) -> str:
     return "\n".join(header) + "\n" + buffer.getvalue()
 
 
-def _fracture_lines(case: Case, model) -> list[str]:
+def _fracture_lines(case: Case, mesh) -> list[str]:
     """The protected vertices (names and boxes checked here) and the smoothing size."""
     from ..fracture.smoothing import mean_edge_length
     from ..fracture.stage import protected_vertices
 
-    mesh, f = model.mesh, case.fracture
+    f = case.fracture
     protected = protected_vertices(f, mesh)
     edge = mean_edge_length(mesh.points, mesh.tets)
     s = f.smoothing

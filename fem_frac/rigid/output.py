@@ -15,17 +15,12 @@ from .body import point_velocities
 
 
 def with_rigid_fragments(fragments, points: np.ndarray, cells: np.ndarray,
-                         point_data: dict, cell_data: dict, none_deformable: bool = False):
-    """``(points, cells, point_data, cell_data)`` of the finite elements followed by every
-    fragment of ``fragments``; fragment ``k`` gets ``fragment_id`` ``k`` (its order of
-    hand-off: stable from frame to frame; number the deformable pieces after them).
-    ``none_deformable``: no finite element is left, write the fragments only."""
-    n_cells = 0 if none_deformable else cells.shape[0]
-    if none_deformable:
-        points = points[:0]
-        cells = cells[:0]
-        point_data = {k: v[:0] for k, v in point_data.items()}
-        cell_data = {k: np.asarray(v)[:0] for k, v in cell_data.items()}
+                         point_data: dict, cell_data: dict):
+    """``(points, cells, point_data, cell_data)`` of the finite elements (none, once every
+    piece is rigid) followed by every fragment of ``fragments``; fragment ``k`` gets
+    ``fragment_id`` ``k`` (its order of hand-off: stable from frame to frame; number the
+    deformable pieces after them)."""
+    n_cells = cells.shape[0]
     cell_data = dict(cell_data)
     cell_data.setdefault("fragment_id", np.zeros(n_cells, dtype=np.int32))
     cell_data["rigid"] = np.zeros(n_cells, dtype=np.int8)

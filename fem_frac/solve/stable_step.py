@@ -66,3 +66,14 @@ def explicit_limit(space, stiffness, lumped, free, youngs_modulus, poissons_rati
     omega *= 1.0 + 10 * LANCZOS_TOLERANCE
     dt = central_difference_limit(omega, mass_damping, stiffness_damping)
     return ExplicitLimit(dt, omega, bound_dt, "lanczos")
+
+
+def stable_limit(space, stiffness, lumped: np.ndarray, free: np.ndarray, materials,
+                 rayleigh=None) -> ExplicitLimit:
+    """The stable step of a discretization: ``materials`` holds ``youngs_modulus``,
+    ``poissons_ratio`` and ``density`` (scalars or per element), ``rayleigh`` the
+    ``analysis.rayleigh`` section or ``None``."""
+    return explicit_limit(space, stiffness, lumped, free, materials.youngs_modulus,
+                          materials.poissons_ratio, materials.density,
+                          rayleigh.mass if rayleigh else 0.0,
+                          rayleigh.stiffness if rayleigh else 0.0)

@@ -144,3 +144,36 @@ def hill_sphere_stress(
     sr_e = -(2.0 * s / 3.0) * (c**3 / r**3 - c**3 / b**3)
     st_e = (2.0 * s / 3.0) * (c**3 / (2.0 * r**3) + c**3 / b**3)
     return np.where(plastic, sr_p, sr_e), np.where(plastic, sr_p + s, st_e)
+
+
+def uniaxial_stress(strains, youngs_modulus: float, plasticity=None) -> float:
+    """Exact axial stress of a homogeneous bar in uniaxial stress after the axial strain
+    history ``strains``: the 1D return map |sigma - K eps_p| <= sigma_Y + H alpha
+    (``plasticity``: an object with ``yield_stress``, ``hardening`` H and
+    ``kinematic_hardening`` K; elastic when ``None``)."""
+    e, p = youngs_modulus, plasticity
+    sigma, plastic, alpha = 0.0, 0.0, 0.0
+    for eps in strains:
+        sigma = e * (eps - plastic)
+        if p is None:
+            continue
+        xi = sigma - p.kinematic_hardening * plastic
+        f = abs(xi) - (p.yield_stress + p.hardening * alpha)
+        if f > 0:
+            dg = f / (e + p.hardening + p.kinematic_hardening)
+            plastic += dg * np.sign(xi)
+            alpha += dg
+            sigma -= e * dg * np.sign(xi)
+    return float(sigma)
+
+
+def fundamental_period(times, signal) -> float:
+    """Twice the mean spacing of the zero crossings of ``signal`` (linear interpolation
+    between samples; the first sample, at rest, is skipped); ``nan`` below three
+    crossings."""
+    t, s = np.asarray(times[1:], dtype=float), np.asarray(signal[1:], dtype=float)
+    k = np.flatnonzero(np.sign(s[:-1]) * np.sign(s[1:]) < 0)
+    if len(k) < 3:
+        return float("nan")
+    crossings = t[k] - s[k] * (t[k + 1] - t[k]) / (s[k + 1] - s[k])
+    return float(2.0 * np.mean(np.diff(crossings)))

@@ -1,0 +1,185 @@
+"""A mesh made ready to step: function space, materials, supports and loads, operators and
+the stepper. Built once from the case's recipe and again on every mesh a topology change
+makes (a crack, a piece leaving), so the recipe holds the sub-configurations it needs and
+nothing else.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.sparse as sp
+
+from ..config import schema
+from ..errors import CaseError
+from ..fem.space import Space, build_space
+from ..mesh.mesh import Mesh
+from ..plasticity.law import MaterialLaw, material_law
+from ..plasticity.regions import ElementMaterials, element_materials
+from ..timing import StageTimer
+from . import integrators
+from .constrained import Constrained
+from .problem import Problem, build_problem, free_rigid_modes
+from .stable_step import ExplicitLimit, stable_limit
+from .state import Operators
+from .stepping import ExplicitStepper, ImplicitStepper, Stepper
+
+Log = Callable[[str], None]
+
+
+def quiet(_: str) -> None:
+    pass
+
+
+@dataclass(frozen=True, eq=False)
+class Recipe:
+    """The sections of a case that say how to discretize a mesh."""
+
+    order: int
+    formulation: str
+    material: schema.Material
+    regions: tuple
+    plasticity: schema.Plasticity | None
+    boundary_conditions: tuple
+    body_force: schema.BodyForce | None
+    load_curves: dict
+    analysis: schema.StaticAnalysis | schema.QuasiStaticAnalysis | schema.DynamicAnalysis
+    dt: float
+
+    @property
+    def dynamic(self) -> bool:
+        return isinstance(self.analysis, schema.DynamicAnalysis)
+
+    @property
+    def explicit(self) -> bool:
+        return self.dynamic and self.analysis.integrator == "central_difference"
+
+
+@dataclass(frozen=True, eq=False)
+class Discretization:
+    """What one mesh provides: space, materials and law, supports and loads, operators,
+    the free/constrained split, the stepper and (explicit) the stable step. Rebuilt after
+    every topology change, from ``recipe``."""
+
+    recipe: Recipe
+    mesh: Mesh
+    space: Space
+    problem: Problem
+    materials: ElementMaterials
+    law: MaterialLaw
+    ops: Operators
+    constrained: Constrained
+    stepper: Stepper
+    limit: ExplicitLimit | None
+
+
+def discretize(recipe: Recipe, mesh: Mesh, timer: StageTimer, strict: bool = True,
+               log: Log = quiet) -> Discretization:
+    """The discretization of ``mesh`` (factorization deferred to the first step).
+    ``strict=False`` lets a condition whose faces left with a rigid piece act on nothing
+    (named groups follow the faces they named through crack insertion)."""
+    space, materials, problem = model_on(recipe, mesh, timer, strict)
+    if strict:
+        check_model(recipe, space, materials, problem)
+    # per-element properties follow the elements
+    law = material_law(materials, recipe.plasticity)
+    ops = build_operators(recipe, space, materials, law, timer)
+    constrained = Constrained(problem, recipe.analysis.linear_solver)
+    limit = None
+    if recipe.explicit:
+        with timer("time step"):
+            limit = stable_limit(space, ops.stiffness, ops.mass.diagonal(), constrained.free,
+                                 materials, recipe.analysis.rayleigh)
+        substeps = explicit_substeps(limit, recipe.dt, recipe.analysis.substeps)
+        log(f"time step  dt {recipe.dt:.4g}, stable limit {limit.dt:.4g} ({limit.method})"
+            + (f", {substeps} substeps per step" if substeps > 1 else ""))
+        stepper = ExplicitStepper(problem, law, ops, recipe.dt, substeps, constrained)
+    else:
+        stepper = ImplicitStepper(problem, law, ops, scheme(recipe.analysis, recipe.dt),
+                                  recipe.analysis.equilibrium, constrained)
+    return Discretization(recipe, mesh, space, problem, materials, law, ops, constrained,
+                          stepper, limit)
+
+
+def model_on(recipe: Recipe, mesh: Mesh, timer: StageTimer,
+             strict: bool = True) -> tuple[Space, ElementMaterials, Problem]:
+    """Function space, per-element materials, supports and loads on ``mesh``."""
+    with timer("space"):
+        space = build_space(mesh, recipe.order)
+    with timer("loads"):
+        materials = element_materials(recipe.material, list(recipe.regions), mesh)
+        problem = build_problem(space, list(recipe.boundary_conditions), recipe.body_force,
+                                materials.density, recipe.analysis, recipe.load_curves,
+                                strict)
+    return space, materials, problem
+
+
+def check_model(recipe: Recipe, space: Space, materials: ElementMaterials,
+                problem: Problem) -> None:
+    """What the analysis needs of the model: a density for inertia, supports that hold
+    every rigid-body motion without it (located errors)."""
+    if recipe.dynamic and not materials.has_density():
+        raise CaseError(("material", "density"), "a dynamic analysis needs material.density "
+                        "(for every element)")
+    if not recipe.dynamic:
+        free = free_rigid_modes(space, problem.constraints.dofs)
+        if free:
+            raise CaseError(
+                ("boundary_conditions",),
+                "the supports leave rigid-body motions free (" + ", ".join(free) + "): "
+                "a static solve is singular; add supports (fixed, displacement, symmetry)",
+            )
+
+
+def build_operators(recipe: Recipe, space: Space, materials: ElementMaterials,
+                    law: MaterialLaw, timer: StageTimer) -> Operators:
+    """Strain operator and elastic stiffness; mass and damping when the analysis is
+    dynamic."""
+    from ..fem.operators import strain_operator
+
+    with timer("assemble"):
+        op = strain_operator(space, recipe.formulation)
+        d = law.elastic_tangent
+        if d.ndim == 4:  # per element: one value for every quadrature point
+            d = np.ascontiguousarray(np.broadcast_to(d, (6, 6) + op.weights.shape))
+        k = op.stiffness(d)
+    mass = damping = None
+    if recipe.dynamic:
+        from ..fem.mass import consistent_mass, lumped_mass
+
+        analysis = recipe.analysis
+        with timer("mass"):
+            if analysis.mass_kind == "lumped":
+                mass = sp.diags(lumped_mass(space, materials.density)).tocsr()
+            else:
+                mass = consistent_mass(space, materials.density)
+            if analysis.rayleigh is not None:
+                r = analysis.rayleigh
+                damping = (r.mass * mass + r.stiffness * k).tocsr()
+    return Operators(op, k, mass, damping)
+
+
+def scheme(analysis, dt: float) -> integrators.Implicit:
+    """The implicit scheme of ``analysis``: Newmark, HHT-alpha, or quasi-static."""
+    if isinstance(analysis, schema.DynamicAnalysis):
+        if analysis.integrator == "hht":
+            return integrators.hht(dt, analysis.alpha)
+        return integrators.newmark(dt, analysis.newmark_beta, analysis.newmark_gamma)
+    return integrators.quasi_static(dt)
+
+
+def explicit_substeps(limit: ExplicitLimit, dt: float, allow: bool) -> int:
+    """Substeps per step for central difference; refuses ``dt`` above the limit unless
+    ``allow``."""
+    if dt <= limit.dt:
+        return 1
+    if not allow:
+        raise CaseError(
+            ("analysis", "dt"),
+            f"time step {dt:.4g} exceeds the stable step of central difference "
+            f"{limit.dt:.4g} (2/omega_max, {limit.method}); use dt <= {limit.dt:.4g}, "
+            "an implicit integrator, or substeps: true",
+        )
+    return int(np.ceil(dt / limit.dt))

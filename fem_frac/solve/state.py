@@ -1,0 +1,142 @@
+"""The committed state of a discretization and the forces that balance it.
+
+One place for the balance of nodal forces, used by the initial state, every implicit step
+and every carry-over onto a new mesh:
+
+    M a + C v + f_int(u) = f_ext + r      (r: support reactions, non-zero on fixed dofs)
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.sparse as sp
+
+from ..errors import SolverError
+from ..plasticity.return_map import PlasticState
+
+
+@dataclass(frozen=True, eq=False)
+class Operators:
+    """What one topology provides: the strain operator (``strain``, ``internal_force``,
+    ``stiffness``), the elastic stiffness, and the mass and damping matrices when there is
+    inertia (``mass`` a sparse matrix, consistent or diagonal)."""
+
+    strain_operator: object
+    stiffness: sp.csr_matrix
+    mass: sp.csr_matrix | None = None
+    damping: sp.csr_matrix | None = None
+
+    @property
+    def weights(self) -> np.ndarray:
+        """Quadrature weights times Jacobians ``(n_tets, n_qp)``."""
+        return self.strain_operator.weights
+
+    @property
+    def lumped(self) -> bool:
+        """The mass matrix is diagonal."""
+        return self.mass is not None and self.mass.nnz == self.mass.shape[0]
+
+
+@dataclass(frozen=True, eq=False)
+class State:
+    """Committed state at time ``t``. Vectors are ``(n_dofs,)``; ``stress`` Mandel
+    ``(6, n_tets, n_qp)``; ``reaction`` is the support force on the constrained dofs
+    ``(k,)``."""
+
+    t: float
+    u: np.ndarray
+    v: np.ndarray
+    a: np.ndarray
+    stress: np.ndarray
+    plastic: PlasticState | None
+    internal_force: np.ndarray
+    reaction: np.ndarray
+
+
+@dataclass(frozen=True)
+class StepInfo:
+    """What one equilibrium step (or its re-solves) cost and reached."""
+
+    iterations: int
+    residual: float
+    solves: int = 0
+    factorizations: int = 0
+    cutbacks: int = 0
+
+    def then(self, later: StepInfo) -> StepInfo:
+        """This step followed by ``later`` (a re-solve of it): costs add up, the residual
+        is the later one's."""
+        return StepInfo(self.iterations + later.iterations, later.residual,
+                        self.solves + later.solves,
+                        self.factorizations + later.factorizations,
+                        self.cutbacks + later.cutbacks)
+
+
+def inertial_force(ops: Operators, v: np.ndarray, a: np.ndarray) -> np.ndarray | float:
+    """``M a + C v`` (zero without mass)."""
+    if ops.mass is None:
+        return 0.0
+    force = ops.mass @ a
+    if ops.damping is not None:
+        force = force + ops.damping @ v
+    return force
+
+
+def reaction(ops: Operators, fixed: np.ndarray, f_int: np.ndarray, f_ext: np.ndarray,
+             v: np.ndarray | None = None, a: np.ndarray | None = None) -> np.ndarray:
+    """Support reactions ``(k,)`` on the ``fixed`` dofs: ``f_int - f_ext`` plus, when the
+    rates are given, the inertial and damping forces."""
+    r = f_int - f_ext
+    if a is not None:
+        r = r + inertial_force(ops, v, a)
+    return r[fixed]
+
+
+def balanced_acceleration(ops: Operators, constrained, f_int: np.ndarray, f_ext: np.ndarray,
+                          v: np.ndarray, a: np.ndarray) -> np.ndarray:
+    """``a`` corrected on the free dofs so that ``M a + C v + f_int = f_ext`` there (a
+    diagonal mass by division, a consistent one by a factorization on the free dofs)."""
+    free = constrained.free
+    unbalanced = f_ext - f_int - inertial_force(ops, v, a)
+    if not np.any(unbalanced[free]):
+        return a
+    a = a.copy()
+    if ops.lumped:
+        a[free] += unbalanced[free] / ops.mass.diagonal()[free]
+    else:
+        a[free] += constrained.factorize(ops.mass).solve(unbalanced[free])
+    return a
+
+
+def check_finite(array: np.ndarray, step: int, stage: str, name: str) -> None:
+    """Stop at once when ``array`` holds NaN or Inf, naming step, stage and field."""
+    bad = ~np.isfinite(array)
+    if np.any(bad):
+        raise SolverError(
+            f"step {step}, stage {stage}: {name} is not finite in {np.count_nonzero(bad)} "
+            f"of {array.size} entries; stopped before writing it"
+        )
+
+
+def initial_state(problem, law, ops: Operators, v0: np.ndarray | None,
+                  constrained) -> State:
+    """State at t = 0: at rest in the reference configuration (or moving with ``v0``), with
+    the acceleration that balances the loads at t = 0 when there is mass."""
+    n = problem.space.n_dofs
+    u = np.zeros(n)
+    u[constrained.dofs] = problem.prescribed(0.0)
+    strain = ops.strain_operator.strain(u)
+    stress, plastic, _ = law.update(strain, law.initial_state(ops.weights.shape))
+    f_int = ops.strain_operator.internal_force(stress)
+    v = np.zeros(n) if v0 is None else v0.copy()
+    v[constrained.dofs] = 0.0  # supports start at rest
+    a = np.zeros(n)
+    f_ext = problem.external_force(0.0)
+    if ops.mass is None:
+        return State(0.0, u, v, a, stress, plastic, f_int,
+                     reaction(ops, constrained.dofs, f_int, f_ext))
+    a = balanced_acceleration(ops, constrained, f_int, f_ext, v, a)
+    return State(0.0, u, v, a, stress, plastic, f_int,
+                 reaction(ops, constrained.dofs, f_int, f_ext, v, a))

@@ -1,0 +1,88 @@
+"""The world of a run: one frozen value holding everything that moves.
+
+A stage reads the world it is given and returns a new one (``dataclasses.replace``); nothing
+edits a world in place, and no stage keeps a part of the world that another stage could
+change. What a stage caches for speed (a smoothing operator, a factorization) is keyed on the
+objects of the world it was derived from, so it is rebuilt when they are replaced.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+
+from ..fracture.summary import CrackMeasures, crack_measures
+from ..fracture.topology import fragments
+from ..rigid.contact import Plane
+from ..rigid.fragment import RigidFragment
+from ..solve.discretization import Discretization
+from ..solve.energy import Ledger
+from ..solve.state import State
+
+
+@dataclass(frozen=True, eq=False)
+class Body:
+    """The deformable part: a discretization and its committed state.
+
+    ``labels (n_tets,)``: the piece (connected component over shared faces) of every
+    element, ``n_pieces`` their count; ``crack``: the crack faces and area of the mesh;
+    ``fields``: element fields ``(n_tets,)`` that stages publish for the output (the smoothed
+    largest principal stress of the fracture criterion), carried through topology changes
+    element by element.
+    """
+
+    disc: Discretization
+    state: State
+    labels: np.ndarray
+    n_pieces: int
+    crack: CrackMeasures
+    fields: dict = field(default_factory=dict)
+
+    @property
+    def mesh(self):
+        return self.disc.mesh
+
+    def with_state(self, state: State, **fields) -> Body:
+        """The same discretization with ``state`` and the ``fields`` published for it (the
+        fields of the previous state go: they describe another state)."""
+        return replace(self, state=state, fields=fields)
+
+    def with_fields(self, **fields) -> Body:
+        """The same state with ``fields`` published for it (beside those already there)."""
+        return replace(self, fields={**self.fields, **fields})
+
+
+def body_of(disc: Discretization, state: State, fields: dict | None = None) -> Body:
+    """A body on a (new) discretization: its pieces and cracks measured once."""
+    n, labels = fragments(disc.mesh.tets)
+    return Body(disc, state, labels, n, crack_measures(disc.mesh), dict(fields or {}))
+
+
+@dataclass(frozen=True, eq=False)
+class World:
+    """Everything that moves in a run, at time ``t``.
+
+    ``body``: the deformable part, ``None`` once every piece has left the finite elements
+    (or from the start when the whole body is rigid); ``rigid``: the rigid bodies in order of
+    hand-off; ``obstacles``: fixed ground planes; ``gravity (3,)`` acts on rigid bodies;
+    ``ledger``: the finite elements' energy balance (works from t = 0, and what left with
+    rigid pieces).
+    """
+
+    t: float
+    body: Body | None
+    ledger: Ledger
+    rigid: tuple[RigidFragment, ...] = ()
+    obstacles: tuple[Plane, ...] = ()
+    gravity: np.ndarray = field(default_factory=lambda: np.zeros(3))
+
+    def rigid_energies(self) -> tuple[float, float]:
+        """Kinetic energy and gravitational potential energy (zero at the origin) of all
+        rigid bodies."""
+        from ..rigid.body import kinetic_energy
+
+        kinetic = sum(kinetic_energy(f.body) for f in self.rigid)
+        potential = -sum(f.body.mass * float(self.gravity @ f.body.position)
+                         for f in self.rigid)
+        return kinetic, potential

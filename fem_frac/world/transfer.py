@@ -1,0 +1,46 @@
+"""A body's state carried onto the mesh a topology change made (crack insertion, pieces
+leaving).
+
+Nodal values are copied to the new nodes, element state stays with its element (elements
+are never cut). That keeps the displacement field, the stresses, the elastic and kinetic
+energies, the mass and the linear and angular momenta exactly. With inertia the acceleration
+is re-balanced on the new mesh (the force on a vertex is now shared by its copies), so the
+energy ledger of a re-solved step still balances.
+"""
+
+from __future__ import annotations
+
+from ..fracture.remap import dof_transfer, node_transfer, transfer_plastic
+from ..fracture.topology import Transfer
+from ..solve.discretization import Discretization
+from ..solve.state import State, balanced_acceleration, reaction
+
+
+def carry(state: State, old: Discretization, new: Discretization, transfer: Transfer,
+          inertia: bool) -> State:
+    """``state`` of ``old`` onto ``new`` through ``transfer``."""
+    dofs = dof_transfer(node_transfer(old.space, new.space, transfer))
+    u, v, a = state.u[dofs], state.v[dofs], state.a[dofs]
+    stress = transfer.transfer_elemental(state.stress, axis=1)
+    plastic = transfer_plastic(state.plastic, transfer)
+    ops, fixed = new.ops, new.constrained.dofs
+    f_int = ops.strain_operator.internal_force(stress)
+    f_ext = new.problem.external_force(state.t)
+    if not (inertia and ops.mass is not None):
+        return State(state.t, u, v, a, stress, plastic, f_int,
+                     reaction(ops, fixed, f_int, f_ext))
+    a = balanced_acceleration(ops, new.constrained, f_int, f_ext, v, a)
+    return State(state.t, u, v, a, stress, plastic, f_int,
+                 reaction(ops, fixed, f_int, f_ext, v, a))
+
+
+def rediscretize(disc: Discretization, mesh, timer, why: str) -> Discretization:
+    """``disc``'s recipe on ``mesh``, a mesh a topology change made (``why``, for the
+    message): a support or load whose faces all left acts on nothing there."""
+    from ..errors import CaseError, SolverError
+    from ..solve.discretization import discretize
+
+    try:
+        return discretize(disc.recipe, mesh, timer, strict=False)
+    except CaseError as exc:
+        raise SolverError(f"{why}: {exc.message}") from None
