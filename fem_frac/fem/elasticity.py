@@ -1,8 +1,15 @@
-"""Small-strain elasticity on a :class:`~fem_frac.fem.space.Space`, vectorized over tets.
+"""Element matrices of small-strain elasticity on a :class:`~fem_frac.fem.space.Space`,
+vectorized over tets.
 
-The material law enters only as a Mandel tangent ``D`` (``(6, 6)`` shared, or
-``(6, 6, n_tets, n_qp)`` per quadrature point) and a Mandel stress ``(6, n_tets, n_qp)``;
-these kernels never evaluate a constitutive model themselves.
+The per-element Mandel B-matrices (:func:`strain_displacement`) and the stiffness assembled
+from element matrices (:func:`stiffness`). The solver reaches this module through
+:meth:`~fem_frac.fem.operators.StrainOperator.stiffness` (the P2 stiffness, where element
+matrices beat the sparse triple product) and through the element frequencies of
+:mod:`~fem_frac.fem.mass`; the strain and the internal force of the step loop are the
+strain operator's (:mod:`~fem_frac.fem.operators`).
+
+The material law enters only as a Mandel tangent ``D``: ``(6, 6)`` shared, or
+``(6, 6, n_tets, n_qp)`` per quadrature point.
 """
 
 from __future__ import annotations
@@ -84,42 +91,3 @@ def assemble_matrix(space: Space, element_matrices: np.ndarray) -> sp.csr_matrix
 def stiffness(space: Space, tangent: np.ndarray) -> sp.csr_matrix:
     """Global stiffness matrix ``K`` (``n_dofs x n_dofs``, CSR)."""
     return assemble_matrix(space, element_stiffness(space, tangent))
-
-
-def strain(space: Space, u: np.ndarray) -> np.ndarray:
-    """Mandel small strain ``(6, n_tets, n_qp)`` of the displacement ``u`` ``(n_dofs,)``."""
-    grads = space.gradients()  # (n_local, 3, nel, nq)
-    ue = u[space.element_dofs].reshape(space.mesh.n_tets, -1, 3)  # (nel, n_local, 3)
-    h = np.einsum("eai,ajeq->ijeq", ue, grads)  # displacement gradient (3, 3, nel, nq)
-    return np.stack(
-        [
-            h[0, 0],
-            h[1, 1],
-            h[2, 2],
-            (h[0, 1] + h[1, 0]) / SQRT2,
-            (h[1, 2] + h[2, 1]) / SQRT2,
-            (h[0, 2] + h[2, 0]) / SQRT2,
-        ]
-    )
-
-
-def internal_force(space: Space, stress: np.ndarray) -> np.ndarray:
-    """Nodal internal force ``(n_dofs,)``: the sum over tets of ``B^T sigma dx``.
-
-    ``stress`` is Mandel ``(6, n_tets, n_qp)``.
-    """
-    grads = space.gradients()
-    f = np.zeros(space.n_dofs)
-    for sl in _chunks(space):
-        b = strain_displacement(grads[:, :, sl])
-        s = np.moveaxis(stress[:, sl], 0, -1) * space.basis.dx[sl, :, None]
-        fe = np.einsum("eqai,eqa->ei", b, s)
-        np.add.at(f, space.element_dofs[sl].ravel(), fe.ravel())
-    return f
-
-
-def stress(tangent: np.ndarray, eps: np.ndarray) -> np.ndarray:
-    """Mandel stress ``(6, n_tets, n_qp)`` of a linear law with Mandel tangent ``D``."""
-    if tangent.ndim == 2:
-        return np.einsum("ab,beq->aeq", tangent, eps)
-    return np.einsum("abeq,beq->aeq", tangent, eps)

@@ -7,11 +7,13 @@ mat-vec, the fastest path in numpy/scipy (see ``benchmarks/operators.py``).
 
 Rows are ordered component-major: row ``(c, e, q) -> c * n_tets * n_qp + e * n_qp + q``, so
 ``(B @ u).reshape(6, n_tets, n_qp)`` is the Mandel strain in the layout of
-:mod:`~fem_frac.fem.elasticity` (VTK order XX YY ZZ XY YZ XZ, shear scaled by sqrt 2).
+:mod:`~fem_frac.fem.tensors` (VTK order XX YY ZZ XY YZ XZ, shear scaled by sqrt 2).
+This is the strain and internal force of the solver (``fem_frac.solve.stepping``).
 
 Two formulations:
 
-- ``"standard"``: the displacement-gradient B of :mod:`~fem_frac.fem.elasticity`.
+- ``"standard"``: the displacement-gradient B, ``B u`` the Mandel vector of ``sym grad u``;
+  the same B as the element matrices of :func:`~fem_frac.fem.elasticity.strain_displacement`.
 - ``"averaged"`` (P1 only): the average nodal volumetric strain tetrahedron (Bonet & Burton
   1998, "A simple average nodal pressure tetrahedral element for incompressible and nearly
   incompressible dynamic explicit applications"; the B-bar/F-bar family of de Souza Neto
@@ -171,7 +173,7 @@ def strain_operator(space: Space, formulation: str = "standard") -> StrainOperat
 
 
 def standard_matrix(space: Space) -> sp.csr_matrix:
-    """The Mandel B of :mod:`~fem_frac.fem.elasticity` as one CSR matrix.
+    """The standard B (``B u``: the Mandel vector of ``sym grad u``) as one CSR matrix.
 
     Each row holds only its nonzeros: ``n_local`` for the normal components, ``2 n_local``
     for the shear ones, with column indices sorted within the row.
