@@ -1,0 +1,110 @@
+"""The case file as typed, validated, immutable models (pydantic v2).
+
+A section that is absent switches its stage off. Every model forbids unknown keys, so a
+misspelt key is an error, never silently ignored. Units are the case's consistent system
+(``units``); the descriptions give SI units.
+
+One module per part of the case: :mod:`.base` (common types, the box selection),
+:mod:`.geometry` (``mesh``), :mod:`.material` (``material``, ``regions``, ``plasticity``),
+:mod:`.loads` (``load_curves``, ``boundary_conditions``, ``body_force``), :mod:`.analysis`,
+:mod:`.fracture` (``fracture``, ``fragments``) and :mod:`.case` (``output``, ``reference``,
+the whole :class:`Case`). Every name is importable from here.
+"""
+
+from .analysis import (
+    Analysis,
+    DynamicAnalysis,
+    Equilibrium,
+    InitialVelocity,
+    LinearSolver,
+    QuasiStaticAnalysis,
+    RayleighDamping,
+    StaticAnalysis,
+)
+from .base import (
+    BoxSelection,
+    NonNegativeFloat,
+    PositiveFloat,
+    PositiveInt,
+    PositiveVector3,
+    Section,
+    Vector3,
+)
+from .case import UNIT_SYSTEMS, Case, Output, Reference
+from .fracture import Fracture, Fragments, Ground, Perturbation, Protect, Smoothing
+from .geometry import (
+    BoxGeometry,
+    CylinderGeometry,
+    Geometry,
+    HollowCylinderGeometry,
+    HollowSphereGeometry,
+    MeshSection,
+    SphereGeometry,
+)
+from .loads import (
+    BUILTIN_CURVES,
+    BodyForce,
+    BoundaryCondition,
+    ConstantCurve,
+    CurveName,
+    Displacement,
+    Fixed,
+    LoadCurve,
+    Pressure,
+    RampCurve,
+    Symmetry,
+    TableCurve,
+    Traction,
+)
+from .material import Material, Plasticity, Region
+
+__all__ = [
+    "BUILTIN_CURVES",
+    "UNIT_SYSTEMS",
+    "Analysis",
+    "BodyForce",
+    "BoundaryCondition",
+    "BoxGeometry",
+    "BoxSelection",
+    "Case",
+    "ConstantCurve",
+    "CurveName",
+    "CylinderGeometry",
+    "Displacement",
+    "DynamicAnalysis",
+    "Equilibrium",
+    "Fixed",
+    "Fracture",
+    "Fragments",
+    "Geometry",
+    "Ground",
+    "HollowCylinderGeometry",
+    "HollowSphereGeometry",
+    "InitialVelocity",
+    "LinearSolver",
+    "LoadCurve",
+    "Material",
+    "MeshSection",
+    "NonNegativeFloat",
+    "Output",
+    "Perturbation",
+    "Plasticity",
+    "PositiveFloat",
+    "PositiveInt",
+    "PositiveVector3",
+    "Pressure",
+    "Protect",
+    "QuasiStaticAnalysis",
+    "RampCurve",
+    "RayleighDamping",
+    "Reference",
+    "Region",
+    "Section",
+    "Smoothing",
+    "SphereGeometry",
+    "StaticAnalysis",
+    "Symmetry",
+    "TableCurve",
+    "Traction",
+    "Vector3",
+]

@@ -1,0 +1,111 @@
+"""``fracture`` (cracks by face separation) and ``fragments`` (pieces that become rigid)."""
+
+from __future__ import annotations
+
+from typing import Annotated, Literal
+
+from pydantic import Field, model_validator
+
+from .base import BoxSelection, NonNegativeFloat, PositiveFloat, PositiveInt, Section, Vector3
+
+
+class Smoothing(Section):
+    """How element stresses are smoothed before the strength check. ``neighbours``: the
+    volume-weighted mean over the elements reachable through shared faces whose centroids lie
+    within ``length`` (or ``rings`` face-steps); ``nodal``: projection to the vertices
+    (volume-weighted) and back. Smoothing never reaches across a crack."""
+
+    method: Literal["neighbours", "nodal"] = "neighbours"
+    length: PositiveFloat | None = Field(
+        default=None, description="smoothing radius in the case's length unit (physical: "
+        "set it from the material, e.g. a few grain sizes or the process-zone size)")
+    rings: Annotated[int, Field(ge=0, le=10)] | None = Field(
+        default=None, description="or: neighbour rings through shared faces (0: none)")
+
+    @model_validator(mode="after")
+    def _one_size(self):
+        if (self.length is None) == (self.rings is None):
+            raise ValueError("give exactly one of 'length' or 'rings'")
+        return self
+
+
+class Perturbation(Section):
+    """Seeded random tilt of every crack normal, uniform on the cap of half-angle
+    ``angle`` (degrees) around the principal direction; the same seed gives the same run."""
+
+    angle: Annotated[float, Field(gt=0.0, lt=90.0)]
+    seed: int = 0
+
+
+class Protect(Section):
+    """Where no crack may open: the vertices of a named boundary, of a mesh volume group
+    (``subdomain``) or of the elements whose centroid lies in ``box``."""
+
+    boundary: str | None = None
+    subdomain: str | None = None
+    box: BoxSelection | None = None
+
+    @model_validator(mode="after")
+    def _one(self):
+        if sum(x is not None for x in (self.boundary, self.subdomain, self.box)) != 1:
+            raise ValueError("give exactly one of 'boundary', 'subdomain' or 'box'")
+        return self
+
+
+class Fracture(Section):
+    """Cracks open where the smoothed largest principal stress exceeds ``tensile_strength``,
+    perpendicular to its direction, by separating the mesh along faces (vertices duplicated).
+
+    Within a step, up to ``passes`` batches are inserted; each batch holds at most
+    ``batch_size`` sites (no two within one smoothing neighbourhood) and is followed by a
+    re-solve of the step on the new mesh; a step inserts at most
+    ``max_insertions_per_step`` sites in all."""
+
+    tensile_strength: PositiveFloat
+    smoothing: Smoothing
+    batch_size: PositiveInt = 4
+    passes: Annotated[int, Field(ge=1, le=1000)] = 8
+    max_insertions_per_step: PositiveInt = 64
+    perturbation: Perturbation | None = None
+    protect: list[Protect] = []
+
+
+class Ground(Section):
+    """A ground plane through ``point`` with upward ``normal``; rigid fragments bounce off it
+    with ``restitution`` (0: no bounce, 1: elastic) and slide with Coulomb ``friction``."""
+
+    point: Vector3 = (0.0, 0.0, 0.0)
+    normal: Vector3 = (0.0, 0.0, 1.0)
+    restitution: Annotated[float, Field(ge=0.0, le=1.0)] = 0.5
+    friction: NonNegativeFloat = 0.5
+
+    @model_validator(mode="after")
+    def _normal(self):
+        if sum(c * c for c in self.normal) == 0.0:
+            raise ValueError("normal must not be zero")
+        return self
+
+
+class Fragments(Section):
+    """Pieces that break free (no support left) become rigid bodies: ``all`` of them,
+    those no larger than ``max_volume`` (``small``), or each once its vibration has decayed
+    (``settled``: strain plus vibrational kinetic energy below ``vibration_tolerance`` of
+    its rigid kinetic energy); ``never`` keeps them deformable. ``whole_body`` makes the
+    whole body one rigid body from the start (no finite elements: ``analysis`` gives the time
+    steps and the initial velocity). ``gravity`` (default: ``body_force.gravity``) acts on
+    rigid bodies; ``ground`` planes stop them."""
+
+    become_rigid: Literal["all", "small", "settled", "never"] = "all"
+    max_volume: PositiveFloat | None = None
+    vibration_tolerance: PositiveFloat = 1e-3
+    whole_body: bool = False
+    gravity: Vector3 | None = None
+    ground: list[Ground] = []
+    contact_substeps: PositiveInt = Field(
+        default=1, description="rigid-body steps per analysis step (finer contact resolution)")
+
+    @model_validator(mode="after")
+    def _small(self):
+        if (self.become_rigid == "small") != (self.max_volume is not None):
+            raise ValueError("become_rigid 'small' goes with max_volume (and only it)")
+        return self
