@@ -70,13 +70,11 @@ def _finite_elements(case: Case) -> list[Stage]:
 def _mass(analysis) -> Stage:
     if not isinstance(analysis, DynamicAnalysis):
         return Stage("mass", False, f"{analysis.type} analysis needs no mass matrix")
-    kind = analysis.mass or ("lumped" if analysis.integrator == "central_difference"
-                             else "consistent")
     damping = ""
     if analysis.rayleigh is not None:
         damping = (f", Rayleigh damping {analysis.rayleigh.mass:g} M + "
                    f"{analysis.rayleigh.stiffness:g} K")
-    return Stage("mass", True, f"{kind} mass{damping}")
+    return Stage("mass", True, f"{analysis.mass_kind} mass{damping}")
 
 
 def _solve(analysis) -> str:
@@ -84,10 +82,9 @@ def _solve(analysis) -> str:
     if isinstance(analysis, StaticAnalysis):
         text = "static, one step"
     elif isinstance(analysis, DynamicAnalysis):
-        beta = analysis.beta if analysis.beta is not None else 0.25
-        gamma = analysis.gamma if analysis.gamma is not None else 0.5
         text = {
-            "newmark": f"implicit Newmark (beta {beta:g}, gamma {gamma:g})",
+            "newmark": f"implicit Newmark (beta {analysis.newmark_beta:g}, "
+                       f"gamma {analysis.newmark_gamma:g})",
             "hht": f"implicit HHT-alpha (alpha {analysis.alpha:g})",
             "central_difference": "explicit central difference",
         }[analysis.integrator]

@@ -18,14 +18,16 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..config.schema import NEWMARK_BETA, NEWMARK_GAMMA
+
 
 @dataclass(frozen=True)
 class Implicit:
     """Coefficients of one implicit scheme at a fixed step ``dt``."""
 
     dt: float
-    beta: float = 0.25
-    gamma: float = 0.5
+    beta: float = NEWMARK_BETA  # the schema's defaults (average acceleration)
+    gamma: float = NEWMARK_GAMMA
     alpha: float = 0.0
     inertia: bool = True
 
@@ -57,11 +59,12 @@ def quasi_static(dt: float) -> Implicit:
     return Implicit(dt=dt, inertia=False)
 
 
-def newmark(dt: float, beta: float | None = None, gamma: float | None = None) -> Implicit:
-    """Average acceleration (beta 1/4, gamma 1/2) by default: unconditionally stable and
-    energy-conserving for linear problems."""
-    return Implicit(dt=dt, beta=0.25 if beta is None else beta,
-                    gamma=0.5 if gamma is None else gamma)
+def newmark(dt: float, beta: float, gamma: float) -> Implicit:
+    """Newmark with ``beta``, ``gamma`` as the case resolves them
+    (``DynamicAnalysis.newmark_beta`` / ``newmark_gamma``: by default average acceleration,
+    beta 1/4 and gamma 1/2, unconditionally stable and energy-conserving for linear
+    problems)."""
+    return Implicit(dt=dt, beta=beta, gamma=gamma)
 
 
 def hht(dt: float, alpha: float) -> Implicit:

@@ -12,6 +12,8 @@ the whole :class:`Case`). Every name is importable from here.
 """
 
 from .analysis import (
+    NEWMARK_BETA,
+    NEWMARK_GAMMA,
     Analysis,
     DynamicAnalysis,
     Equilibrium,
@@ -60,6 +62,8 @@ from .material import Material, Plasticity, Region
 
 __all__ = [
     "BUILTIN_CURVES",
+    "NEWMARK_BETA",
+    "NEWMARK_GAMMA",
     "UNIT_SYSTEMS",
     "Analysis",
     "BodyForce",

@@ -10,6 +10,11 @@ from .base import NonNegativeFloat, PositiveFloat, PositiveInt, Section, Vector3
 
 LinearSolver = Literal["auto", "pardiso", "cholmod", "superlu"]
 
+# The Newmark integrator's defaults: average acceleration (unconditionally stable, no
+# numerical damping). DynamicAnalysis.newmark_beta / newmark_gamma resolve them.
+NEWMARK_BETA = 0.25
+NEWMARK_GAMMA = 0.5
+
 
 class Equilibrium(Section):
     """How each step reaches equilibrium when the material is nonlinear.
@@ -115,6 +120,25 @@ class DynamicAnalysis(_Stepped):
         if self.gamma is not None and self.gamma < 0.5:
             raise ValueError("gamma < 1/2 adds energy (unstable); use gamma >= 1/2")
         return self
+
+    @property
+    def mass_kind(self) -> Literal["consistent", "lumped"]:
+        """``mass``, or its default: lumped for ``central_difference``, else consistent."""
+        if self.mass is not None:
+            return self.mass
+        return "lumped" if self.integrator == "central_difference" else "consistent"
+
+    @property
+    def newmark_beta(self) -> float:
+        """``beta`` of the ``newmark`` integrator, or its default 1/4 (``hht`` derives its
+        own from ``alpha``; ``central_difference`` has none)."""
+        return self.beta if self.beta is not None else NEWMARK_BETA
+
+    @property
+    def newmark_gamma(self) -> float:
+        """``gamma`` of the ``newmark`` integrator, or its default 1/2 (``hht`` derives its
+        own from ``alpha``; ``central_difference`` has none)."""
+        return self.gamma if self.gamma is not None else NEWMARK_GAMMA
 
 
 Analysis = Annotated[
