@@ -2,55 +2,76 @@
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from pathlib import Path
 
 from fem_frac.app.driver import prepare, simulate
+from fem_frac.app.output import step_info
 from fem_frac.config.schema import Case
+from fem_frac.fracture.stage import FractureEvent
 from fem_frac.timing import StageTimer
 
 
-def run(case_dict: dict, case_dir: Path = Path("."), observe=None):
-    """``(setup, final state, ledger, counters)`` of a case, every step seen by ``observe``."""
+@dataclass(frozen=True)
+class Seen:
+    """What a test sees of a step: its equilibrium cost (re-solves included), and the
+    crack sites opened in it."""
+
+    iterations: int
+    residual: float
+    solves: int
+    factorizations: int
+    cutbacks: int
+    insertions: int
+    passes: int
+
+
+class Observe:
+    """A stage that shows ``observe(n, state, ledger, seen)`` every committed step (the
+    state ``None`` once no finite element is left)."""
+
+    name = "observe"
+
+    def __init__(self, observe):
+        self.observe = observe
+
+    def __call__(self, step, world):
+        info, fracture = step_info(step), step.event(FractureEvent)
+        seen = Seen(info.iterations, info.residual, info.solves, info.factorizations,
+                    info.cutbacks, fracture.insertions if fracture else 0,
+                    fracture.passes if fracture else 0)
+        state = world.body.state if world.body is not None else None
+        self.observe(step.n, state, world.ledger, seen)
+        return world, None
+
+
+def simulate_dict(case_dict: dict, case_dir: Path = Path("."), observe=None):
+    """``(setup, last world, tally)`` of a case, every step seen by ``observe``."""
     case = Case.model_validate(case_dict)
     timer = StageTimer()
     setup = prepare(case, case_dir, timer)
-    state, ledger, counters = simulate(setup, timer, observe or (lambda *a: None))
-    return setup, state, ledger, counters
+    observers = (Observe(observe),) if observe is not None else ()
+    world, tally = simulate(setup, timer, observers=observers)
+    return setup, world, tally
+
+
+def run(case_dict: dict, case_dir: Path = Path("."), observe=None):
+    """``(setup, final state, ledger, tally)`` of a case, every step seen by ``observe``."""
+    setup, world, tally = simulate_dict(case_dict, case_dir, observe)
+    return setup, world.body.state, world.ledger, tally
 
 
 def solve(case_dict: dict, case_dir: Path = Path(".")):
-    """(case, model, displacement) of a static case."""
+    """(case, discretization, displacement) of a static case."""
     setup, state, _, _ = run(case_dict, case_dir)
-    return setup.case, setup.model, state.u
+    return setup.case, setup.disc, state.u
 
 
 def run_fracture(case_dict: dict, case_dir: Path = Path("."), observe=None):
-    """``(setup, fracture stage, final state, ledger, counters)`` of a case with fracture;
-    ``stage.current`` is the final discretization (mesh, space, operators)."""
-    from fem_frac.app.driver import fracture_stage
-
-    case = Case.model_validate(case_dict)
-    timer = StageTimer()
-    setup = prepare(case, case_dir, timer)
-    stage = fracture_stage(setup, timer)
-    state, ledger, counters = simulate(setup, timer, observe or (lambda *a: None),
-                                       fracture=stage)
-    return setup, stage, state, ledger, counters
-
-
-def run_fragments(case_dict: dict, case_dir: Path = Path("."), observe=None):
-    """``(setup, fracture stage, rigid stage, final state, ledger)`` of a case with
-    fragments."""
-    from fem_frac.app.driver import fracture_stage, rigid_stage
-
-    case = Case.model_validate(case_dict)
-    timer = StageTimer()
-    setup = prepare(case, case_dir, timer)
-    fracture = fracture_stage(setup, timer)
-    rigid = rigid_stage(setup, fracture)
-    state, ledger, _ = simulate(setup, timer, observe or (lambda *a: None),
-                                fracture=fracture, rigid=rigid)
-    return setup, fracture, rigid, state, ledger
+    """``(setup, last world, final state, ledger, tally)`` of a case with fracture;
+    ``world.body.disc`` is the final discretization (mesh, space, operators)."""
+    setup, world, tally = simulate_dict(case_dict, case_dir, observe)
+    return setup, world, world.body.state, world.ledger, tally
 
 
 def write_case(path: Path, case_dict: dict) -> Path:

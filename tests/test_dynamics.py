@@ -11,7 +11,8 @@ import pytest
 from fem_frac.app.driver import prepare
 from fem_frac.config.schema import Case
 from fem_frac.errors import CaseError
-from fem_frac.solve.stepping import ExplicitStepper, initial_state
+from fem_frac.solve.state import initial_state
+from fem_frac.solve.stepping import ExplicitStepper
 from fem_frac.timing import StageTimer
 from solve import run
 
@@ -70,7 +71,7 @@ def _explicit_setup(factor: float, **analysis):
     probe = Case.model_validate(beam({"integrator": "central_difference", "dt": 1e-12,
                                       "steps": 1}))
     probe_dir = Path(".")
-    limit = prepare(probe, probe_dir, StageTimer()).limit
+    limit = prepare(probe, probe_dir, StageTimer()).disc.limit
     case = beam({"integrator": "central_difference", "dt": factor * limit.dt, **analysis})
     return Case.model_validate(case), probe_dir, limit
 
@@ -99,11 +100,10 @@ def test_central_difference_above_the_stable_step_is_refused_and_the_limit_is_sh
     # 1.02 x the step diverges (the highest mode grows by ~|lambda| per step)
     case, where, limit = _explicit_setup(0.5, steps=1)
     setup = prepare(case, where, StageTimer())
-    stepper = ExplicitStepper(setup.model.problem, setup.law, setup.ops, 1.02 * limit.dt, 1,
-                              setup.constrained)
-    state = initial_state(setup.model.problem, setup.law, setup.ops,
-                          np.tile([0, 0, 1.0], setup.model.space.n_nodes), setup.constrained,
-                          "auto")
+    d = setup.disc
+    stepper = ExplicitStepper(d.problem, d.law, d.ops, 1.02 * limit.dt, 1, d.constrained)
+    state = initial_state(d.problem, d.law, d.ops, np.tile([0, 0, 1.0], d.space.n_nodes),
+                          d.constrained)
     start = np.abs(state.v).max()
     for n in range(1, 3000):
         state = stepper.step(state, n * 1.02 * limit.dt, n)[0]
@@ -115,7 +115,7 @@ def test_central_difference_above_the_stable_step_is_refused_and_the_limit_is_sh
 def test_substeps_take_a_step_above_the_limit_in_stable_pieces():
     case, where, limit = _explicit_setup(2.5, steps=200, substeps=True)
     setup, state, ledger, counters = run(case.model_dump(), where)
-    assert setup.stepper.substeps == 3
+    assert setup.disc.stepper.substeps == 3
     assert counters.iterations == 3 * 200
     assert ledger.relative_error < 0.1
 

@@ -94,17 +94,18 @@ def test_which_free_pieces_become_rigid(rule, expect):
     """The first 10 steps of the breaking beam (it breaks in steps 1-4) under each rule."""
     from ruamel.yaml import YAML
 
-    from solve import run_fragments
+    from solve import simulate_dict
 
     case = YAML(typ="safe").load((CASES / "breaking_beam.yaml").read_text())
     case["fragments"] = {**rule, "ground": case["fragments"]["ground"]}
     case["analysis"]["steps"] = 10
-    _, fracture, rigid, _, ledger = run_fragments(case, CASES)
-    assert (len(rigid.fragments) > 0) == (expect == "some")
+    _, world, _ = simulate_dict(case, CASES)
+    ledger = world.ledger
+    assert (len(world.rigid) > 0) == (expect == "some")
     # the beam broke either way; pieces left deformable stay in the finite elements
-    assert fracture.crack.faces > 0
+    assert world.body.crack.faces > 0
     if expect == "none":
-        assert fracture.n_fragments > 1 and ledger.handed_off == 0.0
+        assert world.body.n_pieces > 1 and ledger.handed_off == 0.0
 
 
 @pytest.mark.parametrize("edit,key,message", [

@@ -133,7 +133,7 @@ def hill(order: int, size: float, formulation: str = "standard", nu: float = NU,
     start = time.perf_counter()
     setup, state, _, counters = run(hill_case(order, size, formulation, nu, c))
     wall = time.perf_counter() - start
-    space, mesh = setup.model.space, setup.model.mesh
+    space, mesh = setup.disc.space, setup.disc.mesh
     nodes = surface_nodes(space, space.facet_indices(mesh.boundaries["outer"]))
     x = space.node_points[nodes]
     u = state.u.reshape(-1, 3)[nodes]

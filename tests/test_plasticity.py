@@ -67,7 +67,7 @@ def test_homogeneous_bar_follows_the_exact_cyclic_path(hardening, kinematic, met
 
     setup, state, ledger, counters = run(bar(hardening, method, kinematic=kinematic),
                                          observe=observe)
-    problem = setup.model.problem
+    problem = setup.disc.problem
     dofs = problem.constraints.dofs
     full = np.zeros(problem.space.n_dofs)
     end = problem.reaction_groups["xmax"]

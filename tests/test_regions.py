@@ -52,7 +52,7 @@ def test_bar_of_two_materials_in_series_is_exact(tmp_path):
     nu = 0, so the halves contract no differently (with nu > 0 the lateral strains -nu
     sigma / E_i differ and the interface constrains them: no longer uniaxial)."""
     setup, state, _, _ = run(bar(tmp_path, nu=0.0), tmp_path)
-    x = setup.model.space.node_points
+    x = setup.disc.space.node_points
     end = np.isclose(x[:, 0], 1.0)
     ux = state.u.reshape(-1, 3)[end, 0]
     exact = SIGMA * (0.5 / E1 + 0.5 / E2)
@@ -67,14 +67,14 @@ def test_density_regions_enter_gravity_and_mass_exactly(tmp_path):
     case = bar(tmp_path, regions=[{"subdomain": "soft", "density": 0.78}],
                body_force={"gravity": [0, 0, -9.81]})
     setup, _, _, _ = run(case, tmp_path)
-    problem = setup.model.problem
+    problem = setup.disc.problem
     total = problem.external_force(1.0).reshape(-1, 3).sum(axis=0)
     expected_mass = (7800.0 + 0.78) * 0.5 * 0.2 * 0.2
     traction = SIGMA * 0.2 * 0.2
     np.testing.assert_allclose(total, [traction, 0, -9.81 * expected_mass], rtol=1e-12)
     from fem_frac.fem.mass import lumped_mass
 
-    m = lumped_mass(setup.model.space, setup.model.materials.density)
+    m = lumped_mass(setup.disc.space, setup.disc.materials.density)
     assert m[0::3].sum() == pytest.approx(expected_mass, rel=1e-12)
 
 

@@ -13,12 +13,15 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from fem_frac.app.driver import fracture_stage, prepare, rigid_stage
+from fem_frac.app.driver import prepare
 from fem_frac.config.schema import Case
 from fem_frac.fracture import fragments, open_crack
 from fem_frac.rigid.body import angular_velocity, kinetic_energy, velocity
-from fem_frac.solve.stepping import State
+from fem_frac.rigid.stage import RigidStage
+from fem_frac.solve.state import State
 from fem_frac.timing import StageTimer
+from fem_frac.world.state import body_of
+from fem_frac.world.transfer import rediscretize
 from meshes import structured_box
 
 
@@ -31,9 +34,16 @@ def _stages(order: int, mass: str):
         "fragments": {},
         "analysis": {"type": "dynamic", "dt": 1e-3, "steps": 1, "mass": mass},
     }
-    setup = prepare(Case.model_validate(case), Path("."), StageTimer())
-    fr = fracture_stage(setup, StageTimer())
-    return setup, fr, rigid_stage(setup, fr)
+    return prepare(Case.model_validate(case), Path("."), StageTimer())
+
+
+def _on(setup, mesh):
+    """The case's discretization on ``mesh``."""
+    return rediscretize(setup.disc, mesh, StageTimer(), "on a cut mesh")
+
+
+def hand_off(d, state, elements):
+    return RigidStage.hand_off(body_of(d, state), elements)
 
 
 def _cut_bar():
@@ -49,7 +59,7 @@ def _cut_bar():
 
 def _moving(d, rng, spin=True):
     """A state translating, spinning and vibrating: v = V + w x x + noise; u small."""
-    space = d.model.space
+    space = d.space
     x = space.node_points
     v = np.array([1.0, -2.0, 0.5]) + (np.cross([3.0, 1.0, -2.0], x) if spin else 0.0)
     v = (v + 0.3 * rng.normal(size=x.shape)).ravel()
@@ -62,26 +72,26 @@ def _moving(d, rng, spin=True):
 
 @pytest.mark.parametrize("order,mass", [(1, "lumped"), (1, "consistent"), (2, "consistent")])
 def test_pieces_keep_the_parents_momenta(order, mass):
-    setup, fr, rg = _stages(order, mass)
-    d = fr.build(_cut_bar())
+    setup = _stages(order, mass)
+    d = _on(setup, _cut_bar())
     state = _moving(d, np.random.default_rng(0))
-    x = (d.model.space.node_points + state.u.reshape(-1, 3))
+    x = (d.space.node_points + state.u.reshape(-1, 3))
     mv = (d.ops.mass @ state.v).reshape(-1, 3)
     p_parent = mv.sum(axis=0)
     l_parent = np.cross(x, mv).sum(axis=0)  # about the origin
-    _, labels = fragments(d.model.mesh.tets)
-    bodies = [rg.hand_off(d, state, np.flatnonzero(labels == k)).body for k in range(3)]
+    _, labels = fragments(d.mesh.tets)
+    bodies = [hand_off(d, state, np.flatnonzero(labels == k)).body for k in range(3)]
     p = sum(b.momentum for b in bodies)
     l_total = sum(b.angular_momentum + np.cross(b.position, b.momentum) for b in bodies)
     scale = np.abs(l_parent).max()
     np.testing.assert_allclose(p, p_parent, rtol=0, atol=1e-12 * np.abs(p_parent).max())
     np.testing.assert_allclose(l_total, l_parent, rtol=0, atol=1e-12 * scale)
     # masses and centres: the finite-element ones (constants and linear fields are exact)
-    m_fe = (d.ops.mass @ np.tile([1.0, 0.0, 0.0], d.model.space.n_nodes))[0::3]
+    m_fe = (d.ops.mass @ np.tile([1.0, 0.0, 0.0], d.space.n_nodes))[0::3]
     assert sum(b.mass for b in bodies) == pytest.approx(m_fe.sum(), rel=1e-12)
     for k, b in enumerate(bodies):
-        nodes = np.unique(d.model.space.basis.element_dofs[:, labels == k])
-        first = (d.ops.mass @ (d.model.space.node_points + state.u.reshape(-1, 3))
+        nodes = np.unique(d.space.basis.element_dofs[:, labels == k])
+        first = (d.ops.mass @ (d.space.node_points + state.u.reshape(-1, 3))
                  .ravel()).reshape(-1, 3)[nodes].sum(axis=0)
         np.testing.assert_allclose(b.position, first / m_fe[nodes].sum(), rtol=0,
                                    atol=1e-12)
@@ -90,9 +100,9 @@ def test_pieces_keep_the_parents_momenta(order, mass):
 def test_a_rigid_parent_hands_off_its_rigid_motion_whole():
     """A piece moving rigidly (no noise, no strain) keeps its velocity and spin exactly, and
     no vibrational energy is removed (consistent P1 mass: its inertia is the exact one)."""
-    setup, fr, rg = _stages(1, "consistent")
-    d = fr.build(_cut_bar())
-    space = d.model.space
+    setup = _stages(1, "consistent")
+    d = _on(setup, _cut_bar())
+    space = d.space
     x = space.node_points
     w, c = np.array([0.3, -1.0, 2.0]), np.array([0.7, 0.2, 0.1])
     vel = np.array([0.5, 0.0, -1.0])
@@ -100,9 +110,9 @@ def test_a_rigid_parent_hands_off_its_rigid_motion_whole():
     v = (vel + np.cross(w, x - c)).ravel()
     state = State(0.0, np.zeros(n), v, np.zeros(n), np.zeros((6,) + d.ops.weights.shape),
                   None, np.zeros(n), np.zeros(0))
-    _, labels = fragments(d.model.mesh.tets)
+    _, labels = fragments(d.mesh.tets)
     for k in range(3):
-        f = rg.hand_off(d, state, np.flatnonzero(labels == k))
+        f = hand_off(d, state, np.flatnonzero(labels == k))
         np.testing.assert_allclose(angular_velocity(f.body), w, rtol=1e-12)
         np.testing.assert_allclose(velocity(f.body), vel + np.cross(w, f.body.position - c),
                                    rtol=1e-12, atol=1e-12)
@@ -115,16 +125,16 @@ def test_vibration_removed_is_the_energy_of_the_motion_about_the_rigid_one():
     """With the consistent mass (exact inertia) the finite-element kinetic energy splits into
     the rigid body's and that of the velocity about the rigid motion (M-orthogonal parts):
     the removed vibrational energy is 1/2 (v - v_rigid)^T M (v - v_rigid), not negative."""
-    setup, fr, rg = _stages(1, "consistent")
-    d = fr.build(_cut_bar())
+    setup = _stages(1, "consistent")
+    d = _on(setup, _cut_bar())
     state = _moving(d, np.random.default_rng(2))
     state = State(0.0, np.zeros_like(state.u), state.v, state.a,
                   np.zeros_like(state.stress), None, state.internal_force, state.reaction)
-    _, labels = fragments(d.model.mesh.tets)
-    space = d.model.space
+    _, labels = fragments(d.mesh.tets)
+    space = d.space
     for k in range(3):
         elements = np.flatnonzero(labels == k)
-        f = rg.hand_off(d, state, elements)
+        f = hand_off(d, state, elements)
         nodes = np.unique(space.basis.element_dofs[:, elements])
         x = space.node_points[nodes]
         rigid = velocity(f.body) + np.cross(angular_velocity(f.body), x - f.body.position)

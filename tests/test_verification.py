@@ -24,8 +24,8 @@ def cantilever(order: int, size: float) -> dict:
 
 
 def tip_deflection(order: int, size: float) -> float:
-    _, model, u = solve(cantilever(order, size))
-    x = model.space.node_points
+    _, disc, u = solve(cantilever(order, size))
+    x = disc.space.node_points
     tip = np.isclose(x[:, 0], L)
     return -float(np.mean(u[3 * np.nonzero(tip)[0] + 2]))
 
@@ -67,13 +67,13 @@ def sphere(order: int, size: float) -> dict:
 
 def lame_error(order: int, size: float) -> tuple[float, float]:
     """(relative L2 error of the displacement, mean element size (volume/n_tets)^(1/3))."""
-    _, model, u = solve(sphere(order, size))
+    _, disc, u = solve(sphere(order, size))
     err, norm = l2_error(
-        model.space, u,
+        disc.space, u,
         lambda x: lame_sphere_displacement(x, (0, 0, 0), A, R_OUT, PRESSURE, E, NU),
     )
-    volume = model.space.basis.dx.sum()
-    return err / norm, (volume / model.mesh.n_tets) ** (1 / 3)
+    volume = disc.space.basis.dx.sum()
+    return err / norm, (volume / disc.mesh.n_tets) ** (1 / 3)
 
 
 @pytest.mark.parametrize(
