@@ -27,7 +27,7 @@ from ..world.state import World, body_of
 from ..writers.directory import prepare_directory
 from ..writers.history import HistoryWriter
 from ..writers.series import SeriesWriter
-from .output import OutputPlan, OutputStage, Progress, Tally
+from .output import OutputPlan, OutputStage, Progress, Tally, TallyStage
 from .reference import check_reference, recorder, reference_error
 from .results import Layout, summary
 
@@ -163,16 +163,8 @@ def simulate(setup: Setup, timer: StageTimer, log: Log = quiet,
     """Every step of the case without files: the last world and the tally; ``observers``
     (stages that return the world they are given) run last in every step."""
     world, tally = start(setup, timer, log)
-
-    class Count:
-        name = "tally"
-
-        def __call__(self, step, world):
-            tally.add(step, world)
-            return world, None
-
     with timer("steps"):
-        world = march(world, [*stages(setup, timer, log), Count(), *observers],
+        world = march(world, [*stages(setup, timer, log), TallyStage(tally), *observers],
                       times(setup.grid), timer)
     return world, tally
 

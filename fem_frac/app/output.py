@@ -66,6 +66,19 @@ class Tally:
         return info
 
 
+class TallyStage:
+    """A stage that adds every step to ``tally`` (a run without output)."""
+
+    name = "tally"
+
+    def __init__(self, tally: Tally):
+        self.tally = tally
+
+    def __call__(self, step: Step, world: World) -> tuple[World, None]:
+        self.tally.add(step, world)
+        return world, None
+
+
 @dataclass(frozen=True)
 class OutputPlan:
     """Which steps are written: step 0 and every ``every``-th, always the last of

@@ -30,6 +30,7 @@ import numpy as np
 
 from ..config import schema
 from ..errors import CaseError
+from ..mesh.mesh import match
 from ..verify import exact
 
 KEY = ("reference", "solution")
@@ -96,7 +97,8 @@ class Recorder:
         self.times: list[float] = []
         self.signal: list[float] = []
         group = problem.reaction_groups["xmin"]
-        self._rows = np.searchsorted(problem.constraints.dofs, group[0::3])
+        # every dof of the group is constrained (a fixed support)
+        self._rows = match(problem.constraints.dofs, group[0::3])
 
     def __call__(self, n: int, world) -> None:
         self.times.append(world.t)
