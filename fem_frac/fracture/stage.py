@@ -172,7 +172,7 @@ class FractureStage:
             sites = self.sites(body, topo, step.n, passes, limit)
             if len(sites) == 0:
                 break
-            sites, mesh, transfer, dropped = self.open(topo, body.n_pieces, sites)
+            sites, mesh, transfer, dropped, pieces = self.open(topo, body.n_pieces, sites)
             topo.refused[dropped] = True  # for the rest of this step: choose other sites
             if mesh is None:
                 continue
@@ -180,7 +180,7 @@ class FractureStage:
                 disc = rediscretize(body.disc, mesh, self.timer, "after crack insertion")
             topo = self._updated(topo, mesh, body.mesh.points[sites.vertices])
             start = carry(start, body.disc, disc, transfer, self.inertia)
-            new = body_of(disc, start)
+            new = body_of(disc, start, pieces=pieces)
             if not self.inertia:
                 _check_supports(new, step.n)
             seconds = time.perf_counter() - t0
@@ -246,7 +246,8 @@ class FractureStage:
 
     def open(self, topo: _Topology, n_pieces: int, sites: Sites):
         """Open ``sites`` on ``topo.mesh``: ``(sites kept, new mesh, transfer, dropped
-        vertices)``, the mesh ``None`` when nothing opens. Sites that would shed debris (a
+        vertices, (count, labels) of the new mesh's pieces)``, the mesh ``None`` when
+        nothing opens. Sites that would shed debris (a
         new piece smaller than one smoothing neighbourhood, whose stress the smoothing
         cannot even resolve) are dropped and the rest opened again from the mesh."""
         mesh, dropped = topo.mesh, []
@@ -259,14 +260,14 @@ class FractureStage:
             volume = np.bincount(labels, weights=topo.volumes, minlength=count)
             debris = np.flatnonzero(volume < topo.debris_volume)
             if count == n_pieces or debris.size == 0:
-                return sites, new, transfer, np.array(dropped, dtype=np.int64)
+                return sites, new, transfer, np.array(dropped, dtype=np.int64), (count, labels)
             touched = transfer.node_map[new.tets[np.isin(labels, debris)]].ravel()
             bad = np.isin(sites.vertices, touched)
             if not bad.any():  # not caused by a split of this batch: nothing to drop
-                return sites, new, transfer, np.array(dropped, dtype=np.int64)
+                return sites, new, transfer, np.array(dropped, dtype=np.int64), (count, labels)
             dropped.extend(sites.vertices[bad].tolist())
             sites = sites.subset(~bad)
-        return sites, None, None, np.array(dropped, dtype=np.int64)
+        return sites, None, None, np.array(dropped, dtype=np.int64), None
 
 
 def _check_supports(body: Body, n: int) -> None:

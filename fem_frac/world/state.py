@@ -53,9 +53,12 @@ class Body:
         return replace(self, fields={**self.fields, **fields})
 
 
-def body_of(disc: Discretization, state: State, fields: dict | None = None) -> Body:
-    """A body on a (new) discretization: its pieces and cracks measured once."""
-    n, labels = fragments(disc.mesh.tets)
+def body_of(disc: Discretization, state: State, fields: dict | None = None,
+            pieces: tuple[int, np.ndarray] | None = None) -> Body:
+    """A body on a (new) discretization: its pieces (``pieces``: ``(count, labels)`` when
+    already known, from :func:`~fem_frac.fracture.topology.fragments`) and cracks measured
+    once."""
+    n, labels = pieces if pieces is not None else fragments(disc.mesh.tets)
     return Body(disc, state, labels, n, crack_measures(disc.mesh), dict(fields or {}))
 
 
