@@ -142,12 +142,12 @@ def apply_override(data, key_path: tuple, value, text: str) -> None:
     node[last] = value
 
 
-def _plain(node):
+def plain_data(node):
     """ruamel's round-trip containers and scalar subclasses -> plain Python objects."""
     if isinstance(node, dict):
-        return {str(k): _plain(v) for k, v in node.items()}
+        return {str(k): plain_data(v) for k, v in node.items()}
     if isinstance(node, list):
-        return [_plain(v) for v in node]
+        return [plain_data(v) for v in node]
     if isinstance(node, bool) or node is None:
         return node
     for t in (int, float, str):
@@ -165,11 +165,11 @@ def load_case(path: str | Path, overrides: typing.Sequence[str] = ()) -> tuple[C
         key_path, value = parse_override(text)
         apply_override(data, key_path, value, text)
         source.overrides[key_path] = text
-    plain = _plain(data)
+    plain = plain_data(data)
     try:
         case = Case.model_validate(plain)
     except ValidationError as exc:
-        raise CaseErrors([_case_error(e, plain) for e in exc.errors()], source) from None
+        raise CaseErrors([case_error(e, plain) for e in exc.errors()], source) from None
     return case, source
 
 
@@ -198,7 +198,8 @@ def _strip_tags(loc: tuple, data) -> tuple:
     return tuple(out)
 
 
-def _case_error(err: dict, data) -> CaseError:
+def case_error(err: dict, data) -> CaseError:
+    """One pydantic error (of validating ``data``) as a located one-line message."""
     loc = _strip_tags(tuple(err["loc"]), data)
     kind, ctx = err["type"], err.get("ctx", {})
     if kind == "missing" and loc and isinstance(loc[-1], int):

@@ -13,7 +13,7 @@ from typing import Annotated, Any
 
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator
 
-from ...config.loader import Source, _case_error, _plain, parse_override, read_yaml
+from ...config.loader import Source, case_error, parse_override, plain_data, read_yaml
 from ...errors import CaseError, FemFracError
 
 SIZE_KEY = "mesh.element_size"
@@ -156,7 +156,7 @@ def _study_error(err: dict, data) -> CaseError:
         hint = (f" (did you mean '{close[0]}'?)" if close
                 else f" (allowed: {', '.join(model.model_fields)})")
         return CaseError(loc, "unknown key" + hint)
-    return _case_error(err, data)
+    return case_error(err, data)
 
 
 def load_study(path: str | Path) -> Study:
@@ -164,7 +164,7 @@ def load_study(path: str | Path) -> Study:
     path = Path(path)
     data = read_yaml(path)
     source = Source(path=path, data=data)
-    plain = _plain(data)
+    plain = plain_data(data)
     try:
         spec = StudyFile.model_validate(plain)
     except ValidationError as exc:
