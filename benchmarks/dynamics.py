@@ -50,7 +50,7 @@ def history(case: dict):
 def limit_of(element_size: float):
     case = Case.model_validate(beam({"integrator": "central_difference", "dt": 1e-12,
                                      "steps": 1}, element_size=element_size))
-    return prepare(case, Path("."), StageTimer()).limit
+    return prepare(case, Path("."), StageTimer()).disc.limit
 
 
 def main() -> None:
@@ -83,7 +83,7 @@ def main() -> None:
         lim = limit_of(h)
         case = Case.model_validate(beam({"integrator": "central_difference", "dt": 1e-12,
                                          "steps": 1}, element_size=h))
-        n = prepare(case, Path("."), StageTimer()).model.space.n_dofs
+        n = prepare(case, Path("."), StageTimer()).disc.space.n_dofs
         print(f"{h:<12}  {n:<6}  {lim.dt:.4e} s          {lim.element_bound_dt:.4e} s    "
               f"{lim.element_bound_dt / lim.dt:.2f}")
 

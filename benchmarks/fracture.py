@@ -3,15 +3,19 @@
 The floor of a step is one back-solve with the cached elastic factorization plus one pass over
 the quadrature points (strain ``B u``, ``law.update``, internal force ``B^T sigma dx``), each
 timed alone. On the same state this times a plain elastic step (``ImplicitStepper.step``) and
-each piece of one batch of the fracture stage, in the order ``FractureStage.__call__`` runs
-them: selection (``stage.sites``), ``stage.open`` (``open_crack``, debris check), rebuild
-(``stage.build``: space, loads, operators, stepper), ``stage._prepare`` (``update_operator``
-and the other per-topology caches), support check, ``stage.carry``, refactorization (the new
-stepper's first ``elastic_factor()``) and the re-solve step. Each piece: best of
-``--repeats``, each call from cold caches (a 64 MiB buffer written first, as in
-plastic_step.py); selection also right after a batch (as in a run); the whole batch end to
-end through ``stage(...)``, cold (the first batch of the process, right after the setup) and
-warm (best of the repeats).
+each piece of one batch of the fracture stage, in the order ``FractureStage._insert`` runs
+them: selection (``stage.sites``, the smoothed principal stress computed afresh),
+``stage.open`` (``open_crack``, the debris check, which also labels the new mesh's pieces),
+rebuild (``world.transfer.rediscretize``: space, loads, operators, constrained dofs and
+stepper), caches (``stage._updated``: ``update_operator`` and the other per-mesh caches of
+``_topology``), carry (``world.transfer.carry``), the new body (``body_of``: crack
+measures), support check (``_check_supports``), refactorization (the new stepper's first
+``elastic_factor()``), the re-solve step, and the field the stage publishes for the
+re-solved state (``stage.principal`` on the new mesh). Each piece: best of ``--repeats``,
+each call from cold caches (a 64 MiB buffer written first, as in plastic_step.py);
+selection also right after a batch (as in a run); the whole batch end to end through
+``stage(step, world)``, cold (the first batch of the process, after steps 0 and 1 of the
+run) and warm (best of the repeats).
 
 Scene: the brittle bar of tests/test_fracture.py (E = 30 GPa, nu = 0.2, strength 3 MPa),
 0.1 x 0.02 x 0.02, symmetry on xmin/ymin/zmin, displacement on xmax, quasi-static, 2 steps to
@@ -26,6 +30,14 @@ batch follows step 2, carrying the committed state of step 1. One subprocess per
 Measured 2026-12-01 on the machine and software of docs/performance.md (2 cores), quiet;
 after sites are tested lazily (blocks in decreasing stress) and ``free_rigid_modes`` works
 on the 6 x 6 triangular factor. Cells: time, in floors, in plain steps.
+
+The figures are those of the fracture stage before it worked on a world (not rerun since):
+its caches were ``stage._prepare``, which also labelled the pieces (connected components)
+and measured the cracks; the pieces now come from the debris check of ``open`` and the
+crack measures from ``body_of``. The rows body and field were not separate pieces then
+(-); the field was computed for the output, outside the batch, so the batch end to end and
+the sum of the pieces now hold one more smoothed principal stress (the selection's cell
+average, smoothing and eigen-decomposition: ~3 floors at 10k, ~2 at 100k).
 
 | (time, /floor, /step) | 10,669 tets | 94,187 tets |
 |---|---|---|
@@ -48,18 +60,20 @@ on the 6 x 6 triangular factor. Cells: time, in floors, in plain steps.
 | **open (stage.open)** | 31.9 ms, 8.9, 7.8 | 342.6 ms, 7.7, 7.3 |
 | - open_crack | 23.3 ms, 6.5, 5.7 | 231.9 ms, 5.2, 4.9 |
 | - debris check | 8.7 ms, 2.4, 2.1 | 110.6 ms, 2.5, 2.4 |
-| **rebuild (stage.build)** | 104.0 ms, 29.1, 25.3 | 1.06 s, 23.7, 22.4 |
+| **rebuild (rediscretize)** | 104.0 ms, 29.1, 25.3 | 1.06 s, 23.7, 22.4 |
 | - space | 3.6 ms, 1.0, 0.9 | 32.8 ms, 0.7, 0.7 |
 | - loads | 62.5 ms, 17.5, 15.2 | 574.2 ms, 12.9, 12.2 |
 | - operators | 35.1 ms, 9.8, 8.5 | 422.4 ms, 9.5, 9.0 |
 | - constrained, stepper | 2.7 ms, 0.8, 0.7 | 27.2 ms, 0.6, 0.6 |
-| **caches (stage._prepare)** | 81.3 ms, 22.7, 19.8 | 534.4 ms, 12.0, 11.4 |
+| **caches (stage._updated)** | 81.3 ms, 22.7, 19.8 | 534.4 ms, 12.0, 11.4 |
 | - update_operator | 58.8 ms, 16.4, 14.3 | 312.5 ms, 7.0, 6.6 |
 | - other caches | 22.5 ms, 6.3, 5.5 | 221.8 ms, 5.0, 4.7 |
+| **carry (transfer.carry)** | 1.2 ms, 0.3, 0.3 | 7.7 ms, 0.2, 0.2 |
+| **body (body_of)** | - | - |
 | **support check** | 0.8 ms, 0.2, 0.2 | 3.4 ms, 0.1, 0.1 |
-| **carry (stage.carry)** | 1.2 ms, 0.3, 0.3 | 7.7 ms, 0.2, 0.2 |
 | **refactorization** | 43.8 ms, 12.2, 10.7 | 946.5 ms, 21.2, 20.1 |
 | **re-solve step** | 3.9 ms, 1.1, 1.0 | 46.9 ms, 1.1, 1.0 |
+| **field (stage.principal)** | - | - |
 | **selection, right after a batch** | 14.6 ms, 4, 4 | 101.5 ms, 2, 2 |
 | **batch (sum of pieces)** | 281.3 ms, 79, 68 | 3.04 s, 68, 65 |
 | **batch warm** | 278.2 ms, 78, 68 | 3.12 s, 70, 66 |
@@ -147,36 +161,58 @@ def best(fn, repeats: int):
 
 
 def one(n_tets: int, repeats: int) -> dict:
-    from fem_frac.app.driver import fracture_stage, prepare
+    from dataclasses import replace
+
+    from fem_frac.app.driver import prepare, start, times
     from fem_frac.config.schema import Case
     from fem_frac.fracture.smoothing import principal_stress, smooth, update_operator
-    from fem_frac.fracture.stage import smoothing_of
+    from fem_frac.fracture.stage import FractureStage, _check_supports, smoothing_of
     from fem_frac.fracture.topology import open_crack
-    from fem_frac.solve.stepping import advance, initial_ledger, initial_state
     from fem_frac.timing import StageTimer
+    from fem_frac.world.equilibrium import EquilibriumStage
+    from fem_frac.world.stage import Step
+    from fem_frac.world.state import body_of
+    from fem_frac.world.transfer import carry, rediscretize
     from fem_frac.writers.fields import cell_average
 
-    setup = prepare(Case.model_validate(case_dict(n_tets)), Path("."), StageTimer())
-    law, ops, st, problem = setup.law, setup.ops, setup.stepper, setup.model.problem
-    mesh, free = setup.model.mesh, setup.constrained.free
-    r: dict = {"tets": mesh.n_tets, "dofs": setup.model.space.n_dofs}
+    timer = StageTimer()
+    setup = prepare(Case.model_validate(case_dict(n_tets)), Path("."), timer)
+    disc = setup.disc
+    law, ops, st = disc.law, disc.ops, disc.stepper
+    mesh, free, space = disc.mesh, disc.constrained.free, disc.space
+    r: dict = {"tets": mesh.n_tets, "dofs": space.n_dofs}
+    world, _ = start(setup, timer)  # factorizes the elastic Jacobian
     factor = st.elastic_factor()
-    s0 = initial_state(problem, law, ops, None, setup.constrained, "auto")
-    s1, led1, _ = advance(st, s0, 0.0, 0.5, initial_ledger(s0, law, ops), problem, law, ops, 1)
-    s2, led2, info = advance(st, s1, 0.5, 1.0, led1, problem, law, ops, 2)
+    t = times(setup.grid)
     bt = StageTimer()
-    stage = fracture_stage(setup, bt)
-    saved = dict(vars(stage))
+    stage = FractureStage(setup.case.fracture, setup.dynamic, bt)
+    equilibrium = EquilibriumStage()
+    # steps 0 and 1 as in a run (nothing opens at half the strength), then step 2's
+    # equilibrium: the batch follows it
+    world, _ = stage(Step(0, float(t[0]), world), world)
+    step = Step(1, float(t[1]), world)
+    world1, info = equilibrium(step, world)
+    world1, _ = stage(replace(step, events=(info,)), world1)
+    step = Step(2, float(t[2]), world1)
+    world2, info = equilibrium(step, world1)
+    step2 = replace(step, events=(info,))
+    s1, s2, body = world1.body.state, world2.body.state, world2.body
+    topo0 = stage._topo  # the caches of the uncracked mesh
+
+    def fresh():
+        """The stage's caches as before the batch (nothing refused, no principal stress
+        kept), made current."""
+        stage._topo = replace(topo0, refused=np.zeros_like(topo0.refused), principal=None)
+        return stage._topo
 
     def whole():
-        vars(stage).update(saved)
-        stage.batches = []
-        return stage(2, s1, led1, s2, led2, info)
+        fresh()
+        return stage(step2, world2)
 
-    r["batch cold"], _ = best(whole, 1)
-    vars(stage).update(saved)
+    r["batch cold"], (_, event) = best(whole, 1)
+    assert len(event.batches) == 1, "the batch opened nothing"
     r["smoothing operator"], _ = best(lambda: smoothing_of(stage.config, mesh), repeats)
-    r["nnz/row"] = stage.smoothing.nnz / mesh.n_tets
+    r["nnz/row"] = topo0.smoothing.nnz / mesh.n_tets
 
     # floor and plain step on the uncracked mesh
     rhs = np.random.default_rng(0).standard_normal(len(free))
@@ -186,69 +222,79 @@ def one(n_tets: int, repeats: int) -> dict:
     r["law.update"], _ = best(lambda: law.update(strain, s1.plastic), repeats)
     r["internal force"], _ = best(lambda: op.internal_force(s2.stress), repeats)
     r["floor"] = r["back-solve"] + r["strain"] + r["law.update"] + r["internal force"]
-    r["step"], (_, step_info) = best(lambda: st.step(s1, 1.0, 2), repeats)
+    r["step"], (_, step_info) = best(lambda: st.step(s1, float(t[2]), 2), repeats)
 
-    # the batch, piece by piece, in the order of FractureStage.__call__
-    refused = np.zeros(mesh.n_points, dtype=bool)
-    space = setup.model.space
+    # the batch, piece by piece, in the order of FractureStage._insert
+    topo = fresh()
+
+    def select():
+        topo.principal = None  # the smoothed stress is computed, as for a new state
+        return stage.sites(body, topo, 2, 0, 8)
+
     p = {}
-    p["selection"], sites = best(lambda: stage.sites(s2, 2, 0, 8, refused), repeats)
+    p["selection"], sites = best(select, repeats)
     p["  cell average"], mean = best(lambda: cell_average(space, s2.stress), repeats)
-    p["  smoothing S @ sigma"], smoothed = best(lambda: smooth(stage.smoothing, mean), repeats)
+    p["  smoothing S @ sigma"], smoothed = best(lambda: smooth(topo.smoothing, mean), repeats)
     p["  eigen-decomposition"], _ = best(lambda: principal_stress(smoothed), repeats)
     p["  site choice"] = p["selection"] - sum(p[k] for k in list(p)[1:])
-    p["open (stage.open)"], (sites, new_mesh, transfer, _) = best(
-        lambda: stage.open(mesh, sites), repeats)
+    p["open (stage.open)"], (sites, new_mesh, transfer, _, pieces) = best(
+        lambda: stage.open(topo, body.n_pieces, sites), repeats)
     p["  open_crack"], _ = best(lambda: open_crack(mesh, sites.vertices, sites.normals),
                                 repeats)
     p["  debris check"] = p["open (stage.open)"] - p["  open_crack"]
     r["sites"], r["new vertices"] = len(sites), new_mesh.n_points - mesh.n_points
     builds = []
 
-    def build():
+    def rebuild():
         bt.seconds.clear()
-        out = stage.build(new_mesh)
+        with bt("fracture rebuild"):
+            out = rediscretize(disc, new_mesh, bt, "after crack insertion")
         builds.append(dict(bt.seconds))
         return out
 
-    p["rebuild (stage.build)"], new = best(build, repeats)
+    p["rebuild (rediscretize)"], new_disc = best(rebuild, repeats)
     parts = min(builds, key=lambda b: b["fracture rebuild"])
     for key, label in (("space", "space"), ("loads", "loads"), ("assemble", "operators")):
         p[f"  {label}"] = parts[key]
     p["  constrained, stepper"] = parts["fracture rebuild"] - sum(
         parts[k] for k in ("space", "loads", "assemble"))
     split = mesh.points[sites.vertices]
-    s = stage.config.smoothing
-
-    def prep():
-        vars(stage).update(saved)
-        stage._prepare(new_mesh, split)
-
-    p["caches (stage._prepare)"], _ = best(prep, repeats)
+    sm = stage.config.smoothing
+    p["caches (stage._updated)"], new_topo = best(
+        lambda: stage._updated(topo, new_mesh, split), repeats)
     p["  update_operator"], _ = best(lambda: update_operator(
-        saved["smoothing"], new_mesh.points, new_mesh.tets, split, length=s.length,
-        rings=s.rings, method=s.method), repeats)
-    p["  other caches"] = p["caches (stage._prepare)"] - p["  update_operator"]
-    p["support check"], _ = best(lambda: stage._check_supports(new, 2), repeats)
-    p["carry (stage.carry)"], carried = best(
-        lambda: stage.carry(s1, saved["current"], new, transfer), repeats)
+        topo.smoothing, new_mesh.points, new_mesh.tets, split, length=sm.length,
+        rings=sm.rings, method=sm.method), repeats)
+    p["  other caches"] = p["caches (stage._updated)"] - p["  update_operator"]
+    p["carry (transfer.carry)"], carried = best(
+        lambda: carry(s1, disc, new_disc, transfer, stage.inertia), repeats)
+    p["body (body_of)"], new_body = best(
+        lambda: body_of(new_disc, carried, pieces=pieces), repeats)
+    p["support check"], _ = best(lambda: _check_supports(new_body, 2), repeats)
 
     def refactor():
-        new.stepper.factor = None
-        return new.stepper.elastic_factor()
+        new_disc.stepper.factor = None
+        return new_disc.stepper.elastic_factor()
 
     p["refactorization"], _ = best(refactor, repeats)
-    p["re-solve step"], (_, resolve_info) = best(lambda: new.stepper.step(carried, 1.0, 2),
-                                                 repeats)
+    p["re-solve step"], (resolved, resolve_info) = best(
+        lambda: new_disc.stepper.step(carried, float(t[2]), 2), repeats)
+    end = new_body.with_state(resolved)
+
+    def field():
+        new_topo.principal = None
+        return stage.principal(end, new_topo)
+
+    p["field (stage.principal)"], _ = best(field, repeats)
     r["iterations"] = f"{step_info.iterations} / {resolve_info.iterations}"
     r["batch (sum of pieces)"] = sum(v for k, v in p.items() if not k.startswith(" "))
     r["batch warm"], _ = best(whole, repeats)
 
     def sites_after_batch():
         whole()
-        vars(stage).update(saved)
+        topo = fresh()
         t0 = time.perf_counter()
-        stage.sites(s2, 2, 0, 8, refused)
+        stage.sites(body, topo, 2, 0, 8)
         return time.perf_counter() - t0
 
     r["selection, right after a batch"] = min(sites_after_batch() for _ in range(repeats))

@@ -1,13 +1,17 @@
-"""Sparse strain operators (fem_frac.fem.operators) against the element kernels of
-fem_frac.fem.elasticity: build once, then strain ``B u`` and internal force ``B^T sigma dx``.
+"""Sparse strain operators (fem_frac.fem.operators): build once, then strain ``B u``,
+internal force ``B^T sigma dx`` and stiffness, the last against element matrices.
 
 Meshes a unit cube with gmsh (``fem_frac.mesh.geometry.build("box", ...)``) at an element
 size giving about the requested number of tets, builds the P1/P2 space, and times (best of
 ``--repeat``) building the operator, one ``strain``, one ``internal_force`` and one
-``stiffness`` with a shared isotropic D, each next to the existing
-``elasticity.strain`` / ``internal_force`` / ``stiffness``. P1 also in the ``averaged``
-formulation (its strain and force go through the standard B plus two thin averaging
-matrices; its ``matrix`` is only needed for the stiffness).
+``stiffness`` with a shared isotropic D, the stiffness next to the element-matrix
+``elasticity.stiffness``. P1 also in the ``averaged`` formulation (its strain and force go
+through the standard B plus two thin averaging matrices; its ``matrix`` is only needed for
+the stiffness).
+
+The element kernels ``elasticity.strain`` / ``internal_force`` that the two ``old`` columns
+of the table below timed were test-only and have been removed from fem_frac.fem.elasticity;
+the script no longer prints those columns (the figures are kept as measured).
 
     python benchmarks/operators.py
     python benchmarks/operators.py --cases 1:100000 2:50000 --repeat 5
@@ -17,7 +21,7 @@ show what node locality does to the sparse products.
 
 Measured with ``--rcm`` on a 2-core x86-64 VM shared with other jobs (numpy 2.4, scipy
 1.17), best of 5 (stiffness: of 3), then the lower of two whole runs; times in ms.
-``old``: fem_frac.fem.elasticity (strain, internal_force). ``BT csr``: the rejected
+``old``: the removed kernels elasticity.strain, internal_force. ``BT csr``: the rejected
 alternative to ``internal_force``, a CSR copy of ``matrix.T`` times the weighted stress
 (for ``ave`` that is the full averaged matrix, against the factored product in ``force``).
 Dofs: 7866 and 56769 (P1), 54879 and 221712 (P2).
@@ -105,11 +109,7 @@ def run(order: int, n_tets: int, repeat: int, stiffness: bool, rcm: bool) -> lis
     sigma = rng.normal(size=(6, mesh.n_tets, space.n_qp))
     d = isotropic_tangent(1.0, 0.3)
     k_repeat = min(repeat, 3)
-    old = {
-        "strain": best(lambda: elasticity.strain(space, u), repeat),
-        "force": best(lambda: elasticity.internal_force(space, sigma), repeat),
-        "K": best(lambda: elasticity.stiffness(space, d), k_repeat) if stiffness else None,
-    }
+    k_elem = best(lambda: elasticity.stiffness(space, d), k_repeat) if stiffness else None
     rows = []
     for form in ("standard", "averaged") if order == 1 else ("standard",):
         op = strain_operator(space, form)
@@ -124,14 +124,12 @@ def run(order: int, n_tets: int, repeat: int, stiffness: bool, rcm: bool) -> lis
                 "nnz": op.matrix.nnz,
                 "build": best(lambda form=form: strain_operator(space, form), repeat),
                 "strain": best(lambda op=op: op.strain(u), repeat),
-                "old": old["strain"],
                 "force": best(lambda op=op: op.internal_force(sigma), repeat),
                 "BT csr": best(lambda c=copy, w=weighted: c @ w, repeat),
-                "old ": old["force"],
                 "K prod": best(lambda op=op: op.product_stiffness(d), k_repeat)
                 if stiffness
                 else None,
-                "K elem": old["K"] if form == "standard" else None,
+                "K elem": k_elem if form == "standard" else None,
             }
         )
     return rows

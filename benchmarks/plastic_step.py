@@ -179,17 +179,18 @@ def patched(module, name: str, value):
         setattr(module, name, old)
 
 
-def instrumented(setup, clock: Clock, method: str | None = None):
-    """A copy of the setup's stepper whose collaborators report to ``clock``; with
+def instrumented(disc, clock: Clock, method: str | None = None):
+    """A copy of the discretization's stepper whose collaborators report to ``clock``; with
     ``method``, that equilibrium method instead of the case's."""
+    import fem_frac.solve.constrained as constrained
     import fem_frac.solve.linalg as linalg
     from fem_frac.solve import stepping
+    from fem_frac.solve.state import Operators
 
-    base = setup.stepper
+    base = disc.stepper
     st = copy.copy(base)
     if method is not None:
-        st.equilibrium = stepping.Equilibrium(method, base.equilibrium.tolerance,
-                                              base.equilibrium.max_iterations)
+        st.equilibrium = base.equilibrium.model_copy(update={"method": method})
     solve_proxy = lambda f: Proxy(f, clock, {"solve": "back-solve"})  # noqa: E731
     st.factor = solve_proxy(base.elastic_factor())
     st.problem = Proxy(base.problem, clock, {"external_force": "external force",
@@ -198,13 +199,18 @@ def instrumented(setup, clock: Clock, method: str | None = None):
     op = Proxy(base.ops.strain_operator, clock, {"strain": "strain",
                                                  "internal_force": "internal force",
                                                  "stiffness": "tangent assembly"})
-    st.ops = stepping.Operators(op, TimedMatrix(base.ops.stiffness, clock, "K du predictor"))
+    st.ops = Operators(op, base.ops.stiffness, base.ops.mass, base.ops.damping)
+    # the first iterate's K du: the stiffness columns of the moved prescribed dofs
+    st.fixed_columns = TimedMatrix(base.fixed_columns, clock, "K du predictor")
     st.constrained = Proxy(base.constrained, clock, {"factorize": "factorize (all)"},
                            wrap_result={"factorize": solve_proxy})
     st.jacobian = clock.wrap("tangent assembly", st.jacobian)
     patches = [
         (stepping, "check_finite", clock.wrap("finite checks", stepping.check_finite)),
-        (stepping, "factorize", clock.wrap("factorize (linalg)", stepping.factorize)),
+        (constrained, "factorize", clock.wrap("factorize (linalg)", constrained.factorize)),
+        # full Newton's tangents go through the refactorizer, not linalg.factorize
+        (linalg.Refactorizer, "factorize",
+         clock.wrap("factorize (linalg)", linalg.Refactorizer.factorize)),
         (linalg, "_probe", clock.wrap("factorize probe", linalg._probe)),
     ]
     if hasattr(stepping, "_norm"):
@@ -212,10 +218,10 @@ def instrumented(setup, clock: Clock, method: str | None = None):
     return st, patches
 
 
-def run_instrumented(setup, state, t: float, repeats: int, method: str | None = None):
+def run_instrumented(disc, state, t: float, repeats: int, method: str | None = None):
     """Best (by total) of ``repeats`` instrumented steps: ``(total, seconds, calls, info)``."""
     clock = Clock()
-    st, patches = instrumented(setup, clock, method)
+    st, patches = instrumented(disc, clock, method)
     best_run = None
     for _ in range(repeats):
         clock.reset()
@@ -235,16 +241,16 @@ def run_instrumented(setup, state, t: float, repeats: int, method: str | None = 
 FACTOR_LABELS = ("restrict to free dofs", "factorize (PARDISO + checks)", "factorize probe")
 
 
-def pardiso_phases(setup) -> dict:
+def pardiso_phases(disc) -> dict:
     """Seconds of PARDISO's analysis (phase 11: METIS ordering, symbolic factorization) and
     numerical factorization (phase 22) of the elastic Jacobian on the free dofs: what a
     refactorization with an unchanged sparsity pattern could skip, and what it cannot."""
     from fem_frac.solve import linalg
 
-    if setup.stepper.elastic_factor().method != "pardiso":
+    if disc.stepper.elastic_factor().method != "pardiso":
         return {}
-    free = setup.constrained.free
-    sub = setup.stepper.elastic_jacobian[free][:, free].tocsr()
+    free = disc.constrained.free
+    sub = disc.stepper.elastic_jacobian[free][:, free].tocsr()
     handle = linalg._PardisoHandle(sub)
     dummy = np.zeros(handle.n)
     t0 = time.perf_counter()
@@ -281,37 +287,38 @@ def one(n_tets: int, order: int, formulation: str, repeats: int, newton_repeats:
     setup = prepare(Case.model_validate(case_dict(n_tets, order, formulation)), Path("."),
                     timer)
     t0 = time.perf_counter()
-    state, _, counters = simulate(setup, timer, lambda *a: None)
+    world, tally = simulate(setup, timer)
     row["preload_s"] = time.perf_counter() - t0
     row["factorize_s"] = timer.seconds["factorize"]
-    row["preload_iterations"] = counters.iterations
-    st = setup.stepper
+    row["preload_iterations"] = tally.iterations
+    state, disc = world.body.state, world.body.disc
+    law, ops, st = disc.law, disc.ops, disc.stepper
     factor = st.elastic_factor()
     row["solver"] = factor.method
-    row["tets"] = setup.model.mesh.n_tets
-    row["dofs"] = setup.model.space.n_dofs
-    row["free_dofs"] = len(setup.constrained.free)
-    row["qp"] = int(setup.ops.weights.size)
+    row["tets"] = disc.mesh.n_tets
+    row["dofs"] = disc.space.n_dofs
+    row["free_dofs"] = len(disc.constrained.free)
+    row["qp"] = int(ops.weights.size)
     row["yielded"] = float(np.mean(state.plastic.equivalent_plastic_strain > 0))
     dt = 1.0 / STEPS
     t_a, t_b = state.t - dt, state.t + dt  # unloading, loading
 
     # floor: one back-solve, one return map (and, for reference, strain and internal force)
-    free = setup.constrained.free
-    rhs = (setup.model.problem.external_force(t_a) - state.internal_force)[free]
+    free = disc.constrained.free
+    rhs = (disc.problem.external_force(t_a) - state.internal_force)[free]
     row["solve_s"], _ = best(lambda: factor.solve(rhs), repeats)
     new_a, info_a = st.step(state, t_a, PRELOAD + 1)
-    strain = setup.ops.strain_operator.strain(new_a.u)
-    row["return_map_s"], _ = best(lambda: setup.law.update(strain, state.plastic), repeats)
-    row["strain_s"], _ = best(lambda: setup.ops.strain_operator.strain(new_a.u), repeats)
+    strain = ops.strain_operator.strain(new_a.u)
+    row["return_map_s"], _ = best(lambda: law.update(strain, state.plastic), repeats)
+    row["strain_s"], _ = best(lambda: ops.strain_operator.strain(new_a.u), repeats)
     row["internal_force_s"], _ = best(
-        lambda: setup.ops.strain_operator.internal_force(new_a.stress), repeats)
+        lambda: ops.strain_operator.internal_force(new_a.stress), repeats)
     floor = row["floor_s"] = row["solve_s"] + row["return_map_s"]
 
     # (a) a step the first iterate solves
     row["a_s"], (_, info) = best(lambda: st.step(state, t_a, PRELOAD + 1), repeats)
     row["a_iterations"] = info.iterations
-    total, seconds, calls, _ = run_instrumented(setup, state, t_a, repeats)
+    total, seconds, calls, _ = run_instrumented(disc, state, t_a, repeats)
     row["a_instrumented_s"] = total
     row["a_parts"] = exclusive(seconds, total)
     row["a_calls"] = calls
@@ -325,13 +332,13 @@ def one(n_tets: int, order: int, formulation: str, repeats: int, newton_repeats:
     row["b_iterations"] = info.iterations
     row["b_ratio"] = row["b_s"] / floor
     row["b_per_iteration_ratio"] = row["b_s"] / info.iterations / floor
-    total, seconds, calls, _ = run_instrumented(setup, state, t_b, 1)
+    total, seconds, calls, _ = run_instrumented(disc, state, t_b, 1)
     row["b_parts"] = exclusive(seconds, total)
     row["b_calls"] = calls
     row["b_yielded"] = float(np.mean(new_b.plastic.equivalent_plastic_strain > 0))
 
     # (c) the same step, full Newton (the elastic factorization reused for its first iterate)
-    total, seconds, calls, info = run_instrumented(setup, state, t_b, newton_repeats,
+    total, seconds, calls, info = run_instrumented(disc, state, t_b, newton_repeats,
                                                    method="newton")
     row["c_s"] = total
     row["c_iterations"] = info.iterations
@@ -340,7 +347,7 @@ def one(n_tets: int, order: int, formulation: str, repeats: int, newton_repeats:
     row["c_parts"] = c = exclusive(seconds, total)
     row["c_calls"] = calls
     row["c_tangent_s"] = c.get("return map", 0.0) - info.iterations * row["return_map_s"]
-    row.update(pardiso_phases(setup))
+    row.update(pardiso_phases(disc))
     row["peak_mib"] = peak_mib()
     return row
 
