@@ -130,8 +130,7 @@ class OutputStage:
         for observe in self.observers:
             observe(step.n, world)
         if self.plan.due(step.n):
-            with self.timer("output"):
-                self._write(world)
+            self._write(world)
         if self.progress is not None:
             self.progress(step.n, world.t, info)
         return world, None
