@@ -6,7 +6,6 @@ from __future__ import annotations
 
 import json
 import sys
-from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -15,7 +14,7 @@ import numpy as np
 from ..config.schema import Case, DynamicAnalysis, StaticAnalysis
 from ..errors import CaseError
 from ..mesh.build import build_mesh
-from ..solve.discretization import Discretization, Recipe, discretize
+from ..solve.discretization import Discretization, Log, Recipe, discretize, quiet
 from ..solve.energy import initial_ledger
 from ..solve.loading import TimeGrid, time_grid
 from ..solve.state import initial_state
@@ -30,12 +29,6 @@ from ..writers.series import SeriesWriter
 from .output import OutputPlan, OutputStage, Progress, Tally, TallyStage
 from .reference import check_reference, recorder, reference_error
 from .results import Layout, summary
-
-Log = Callable[[str], None]
-
-
-def quiet(_: str) -> None:
-    pass
 
 
 @dataclass(frozen=True, eq=False)

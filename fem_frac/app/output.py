@@ -7,10 +7,10 @@ It reads the world and the step's events and returns the world unchanged.
 from __future__ import annotations
 
 import time
-from collections.abc import Callable
 from dataclasses import dataclass, field
 
 from ..fracture.stage import Batch, FractureEvent
+from ..solve.discretization import Log
 from ..solve.state import StepInfo
 from ..timing import StageTimer
 from ..world.stage import Step
@@ -18,8 +18,6 @@ from ..world.state import Body, World
 from ..writers.history import HistoryWriter
 from ..writers.series import SeriesWriter
 from .results import Layout, empty, frame, history_row, write_crack_surface, write_step
-
-Log = Callable[[str], None]
 
 
 def step_info(step: Step) -> StepInfo:
