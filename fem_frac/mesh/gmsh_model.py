@@ -24,6 +24,7 @@ HXT makes ~10 % fewer tets than Delaunay for the same h.
 
 from __future__ import annotations
 
+import signal
 import threading
 from collections.abc import Iterator
 from contextlib import contextmanager
@@ -63,8 +64,12 @@ def gmsh_session(verbose: bool = False) -> Iterator[None]:
     import gmsh
 
     owner = not gmsh.isInitialized()
+    main = threading.current_thread() is threading.main_thread()
+    # Ctrl-C stops gmsh's own loops only with SIGINT at its default (which gmsh sets when
+    # interruptible); Python's handler comes back afterwards, so an interrupted run can
+    # still say how far it got
+    handler = signal.getsignal(signal.SIGINT) if main else None
     if owner:
-        main = threading.current_thread() is threading.main_thread()
         gmsh.initialize(readConfigFiles=False, interruptible=main)
     else:
         gmsh.model.add("fem_frac")
@@ -76,6 +81,8 @@ def gmsh_session(verbose: bool = False) -> Iterator[None]:
             gmsh.finalize()
         else:
             gmsh.model.remove()
+        if handler is not None:
+            signal.signal(signal.SIGINT, handler)
 
 
 def mesh_current_model(
