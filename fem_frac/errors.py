@@ -26,3 +26,12 @@ class MeshError(FemFracError):
 
 class SolverError(FemFracError):
     """A numerical failure the user can act on (singular system, non-finite state)."""
+
+
+class Interrupted(BaseException):  # noqa: N818 (a signal, like KeyboardInterrupt)
+    """A run stopped by a signal (SIGINT, SIGTERM) at ``step``; its output so far is
+    kept. A BaseException, like KeyboardInterrupt, so that no handler of errors takes it."""
+
+    def __init__(self, signum: int, step: int = 0, steps: int = 0, directory=None):
+        super().__init__(f"interrupted by signal {signum}")
+        self.signum, self.step, self.steps, self.directory = signum, step, steps, directory

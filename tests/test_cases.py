@@ -167,7 +167,10 @@ def test_overflowing_solution_stops_with_a_diagnostic_and_writes_no_field(tmp_pa
     assert main(["run", str(case), "-o", str(out), "-q"]) == 3
     err = capsys.readouterr().err
     assert "error:" in err and ("not finite" in err or "overflowed" in err)
-    assert not list(out.glob("*.vtu")) and not (out / "summary.json").exists()
+    assert not list(out.glob("*.vtu"))
+    summary = json.loads((out / "summary.json").read_text())  # says how far it got
+    assert summary["status"] == "failed" and summary["step"] == 0
+    assert "not finite" in summary["message"] or "overflowed" in summary["message"]
 
 
 def test_a_run_that_overflows_mid_way_stops_at_once_and_keeps_what_it_wrote(tmp_path, capsys):

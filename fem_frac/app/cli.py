@@ -13,7 +13,7 @@ import sys
 from pathlib import Path
 
 from .. import __version__
-from ..errors import CaseError, FemFracError, SolverError
+from ..errors import CaseError, FemFracError, Interrupted, SolverError
 
 EXAMPLES = """examples:
   fem-frac check cases/cantilever.yaml
@@ -142,6 +142,11 @@ def main(argv: list[str] | None = None) -> int:
     except FemFracError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2
+    except Interrupted as exc:
+        where = f" in {exc.directory}" if exc.directory is not None else ""
+        print(f"interrupted at step {exc.step} of {exc.steps}; output so far kept{where}",
+              file=sys.stderr)
+        return 128 + int(exc.signum)
     except KeyboardInterrupt:
         print("interrupted; output written so far is kept", file=sys.stderr)
         return 130
@@ -155,9 +160,11 @@ def _warn_units(case, source) -> None:
 
 
 def _log(quiet: bool):
-    if quiet:
-        return lambda _msg: None
-    return lambda msg: print(msg, file=sys.stderr, flush=True)
+    """The messages of a command, on stderr (``quiet``: none); a run's progress bar is
+    drawn there too when stderr is a terminal."""
+    from .output import Console
+
+    return Console(sys.stderr, quiet)
 
 
 def _run(case, source, args) -> None:
@@ -167,21 +174,27 @@ def _run(case, source, args) -> None:
     out_dir, name = output_location(case, args.case, args.output)
     log = _log(args.quiet)
     log(f"case       {args.case}")
-    summary = run_case(
-        case,
-        args.case,
-        out_dir,
-        name,
-        overwrite=args.overwrite,
-        log=log,
-        resolved_yaml=resolved_yaml(resolved_case(case, source, out_dir, name), source),
-    )
+    try:
+        summary = run_case(
+            case,
+            args.case,
+            out_dir,
+            name,
+            overwrite=args.overwrite,
+            log=log,
+            resolved_yaml=resolved_yaml(resolved_case(case, source, out_dir, name), source),
+        )
+    finally:
+        log.close()  # a run stopped early leaves its progress bar: end that line
     t = summary["wall_time_s"]
     a = summary["analysis"]
     extra = ""
     if a["steps"] > 1 or case.plasticity is not None:
-        extra = (f", {a['steps']} steps, {a['iterations']} iterations, energy balance "
-                 f"{a['energy_error_relative']:.1e}")
+        # an explicit step counts one iteration per substep of central difference
+        counts = ("substeps" if getattr(case.analysis, "integrator", None)
+                  == "central_difference" else "iterations")
+        extra = (f", {a['steps']} steps, {a['iterations']} {counts}, energy balance error "
+                 f"{a['energy_error_relative']:.1e} (relative)")
     if case.plasticity is not None:
         extra += f", plastic dissipation = {summary['plastic_dissipation']:.6g}"
     log(f"done       max |u| = {summary['max_displacement']:.6g}, "

@@ -4,7 +4,7 @@ works."""
 
 from __future__ import annotations
 
-import json
+import signal
 import sys
 from dataclasses import dataclass
 from pathlib import Path
@@ -12,7 +12,7 @@ from pathlib import Path
 import numpy as np
 
 from ..config.schema import Case, DynamicAnalysis, StaticAnalysis
-from ..errors import CaseError
+from ..errors import CaseError, Interrupted, SolverError
 from ..mesh.build import build_mesh
 from ..solve.discretization import Discretization, Log, Recipe, discretize, quiet
 from ..solve.energy import initial_ledger
@@ -29,6 +29,7 @@ from ..writers.series import SeriesWriter
 from .output import OutputPlan, OutputStage, Progress, Tally, TallyStage
 from .reference import check_reference, recorder, reference_error
 from .results import Layout, summary
+from .status import RunStatus, terminated_as_interrupt, write_json
 
 
 @dataclass(frozen=True, eq=False)
@@ -180,24 +181,63 @@ def output_location(case: Case, case_path: Path, directory: str | None) -> tuple
 
 def run_case(case: Case, case_path: Path, out_dir: Path, name: str, overwrite: bool = False,
              log: Log = quiet, resolved_yaml: str | None = None) -> dict:
-    """Run a case end to end and write its output. Returns the summary."""
+    """Run a case end to end and write its output. Returns the summary.
+
+    The resolved case and a summary marked ``running`` are written before the first step
+    (:mod:`~fem_frac.app.status`); an interrupted or failed run marks the summary with the
+    step it reached and raises on (:class:`~fem_frac.errors.Interrupted`,
+    :class:`~fem_frac.errors.SolverError`), its output kept."""
     timer = StageTimer()
     setup = prepare(case, case_path.parent, timer, log)
     # after validation (a bad case never touches earlier results), before the long stages
     prepare_directory(out_dir, name, overwrite)
+    if resolved_yaml is not None:
+        (out_dir / "case.resolved.yaml").write_text(resolved_yaml)
+    status = RunStatus(out_dir / "summary.json", case_path, setup.grid.steps)
+    status.record("running")
     series = SeriesWriter(out_dir, name)
+    with terminated_as_interrupt():
+        try:
+            world, tally, record = _march(setup, out_dir, name, series, status, timer, log)
+        except (KeyboardInterrupt, Interrupted) as exc:
+            signum = exc.signum if isinstance(exc, Interrupted) else signal.SIGINT
+            status.record("interrupted", message=f"interrupted by {signal.Signals(signum).name}"
+                          f" at step {status.step} of {status.steps}; output so far kept")
+            raise Interrupted(signum, status.step, status.steps, out_dir) from None
+        except SolverError as exc:
+            status.record("failed", message=str(exc))
+            raise
+    result = _summary(case, case_path, setup, world, tally, timer, log, record)
+    result["output"] = {"pvd": str(series.pvd_path), "steps": len(series.entries),
+                        "history": str(out_dir / "history.csv")}
+    write_json(out_dir / "summary.json", result)
+    _warn_single_pass(case, setup, tally)
+    log(f"output     {series.pvd_path}")
+    return result
+
+
+def _march(setup: Setup, out_dir: Path, name: str, series: SeriesWriter, status: RunStatus,
+           timer: StageTimer, log: Log):
+    """Every step of the case with its output: the last world, the tally and the
+    reference's recorder (``None`` when the case declares none that needs one)."""
+    case = setup.case
     cracks = SeriesWriter(out_dir, f"{name}_crack") if (
         case.fracture is not None and case.output.crack_surface) else None
     world, tally = start(setup, timer, log)
     record = recorder(case, setup.disc.problem)
+    observers = ((record,) if record is not None else ()) + (status,)
     with HistoryWriter(out_dir / "history.csv") as history:
         output = OutputStage(output_plan(case, setup.grid), layout_of(case), series, history,
-                             tally, timer, cracks, Progress(log, setup.grid.steps),
-                             (record,) if record is not None else ())
+                             tally, timer, cracks, Progress(log, setup.grid.steps), observers)
         with timer("steps"):
             world = march(world, [*stages(setup, timer, log), output], times(setup.grid),
                           timer)
-    result = summary(case, case_path, setup.grid, world, tally)
+    return world, tally, record
+
+
+def _summary(case: Case, case_path: Path, setup: Setup, world: World, tally: Tally,
+             timer: StageTimer, log: Log, record) -> dict:
+    result = {"status": "completed", **summary(case, case_path, setup.grid, world, tally)}
     result["wall_time_s"] = {**{k: round(v, 6) for k, v in timer.seconds.items()},
                              "total": round(timer.total(), 6)}
     if case.reference is not None:
@@ -206,13 +246,6 @@ def run_case(case: Case, case_path: Path, out_dir: Path, name: str, overwrite: b
         result["reference"] = ref
         log(f"reference  {ref['solution']}: {ref['quantity']} {ref['computed']:.6g}, exact "
             f"{ref['exact']:.6g}, relative error {ref['relative_error']:+.3e}")
-    result["output"] = {"pvd": str(series.pvd_path), "steps": len(series.entries),
-                        "history": str(out_dir / "history.csv")}
-    (out_dir / "summary.json").write_text(json.dumps(result, indent=2) + "\n")
-    if resolved_yaml is not None:
-        (out_dir / "case.resolved.yaml").write_text(resolved_yaml)
-    _warn_single_pass(case, setup, tally)
-    log(f"output     {series.pvd_path}")
     return result
 
 
