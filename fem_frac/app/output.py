@@ -1,17 +1,23 @@
 """The output stage: the history row of every step, the series at the output steps, the
-progress line, and the tally of the run for its summary.
+progress display, and the tally of the run for its summary; the console the run's messages
+go to.
 
 It reads the world and the step's events and returns the world unchanged.
 """
 
 from __future__ import annotations
 
+import sys
 import time
 from dataclasses import dataclass, field
+from typing import TextIO
+
+from tqdm import tqdm
 
 from ..fracture.stage import Batch, FractureEvent
 from ..solve.discretization import Log
 from ..solve.state import StepInfo
+from ..solve.stepping import ExplicitStepper
 from ..timing import StageTimer
 from ..world.stage import Step
 from ..world.state import Body, World
@@ -91,20 +97,116 @@ class OutputPlan:
         return n == self.steps or n % self.every == 0
 
 
+class Console:
+    """The run's messages on ``stream`` (stderr), one a line: a :data:`Log`. While a
+    :class:`Progress` bar is drawn on a terminal, a message prints above the bar, which is
+    redrawn below it. ``quiet``: nothing at all, no bar either."""
+
+    def __init__(self, stream: TextIO | None = None, quiet: bool = False):
+        self.stream = stream if stream is not None else sys.stderr
+        self.quiet = quiet
+        self.bar: tqdm | None = None
+
+    @property
+    def terminal(self) -> bool:
+        """Whether a bar may be drawn: not quiet, and the stream is a terminal."""
+        isatty = getattr(self.stream, "isatty", None)
+        return not self.quiet and isatty is not None and bool(isatty())
+
+    def __call__(self, message: str) -> None:
+        if self.quiet:
+            return
+        if self.bar is not None:
+            self.bar.write(message, file=self.stream)
+        else:
+            print(message, file=self.stream, flush=True)
+
+    def close(self) -> None:
+        """Ends a bar left drawn (a run stopped by an error or Ctrl-C), so what follows
+        starts on a line of its own."""
+        if self.bar is not None:
+            bar, self.bar = self.bar, None
+            bar.close()
+
+
+# the bar: steps done, elapsed and estimated time left, then the step's status
+BAR_FORMAT = ("step       {n_fmt}/{total_fmt} |{bar:20}| {percentage:3.0f}%  "
+              "elapsed {elapsed}  ETA {remaining}  {desc}")
+
+
 class Progress:
-    """A line every ~2 s of wall time, and at the end (into ``log``)."""
+    """What a run shows while it steps: steps done, elapsed, the estimated time left, and
+    the last step's time, cost and residual (with fracture and fragments: crack faces,
+    fragments, rigid bodies).
 
-    def __init__(self, log: Log, steps: int, every: float = 2.0):
+    On a :class:`Console` that is a terminal, a bar redrawn in place (tqdm); the messages of
+    the stages print above it. Anywhere else (a file or a pipe, or a ``log`` that is a plain
+    function), a plain line into ``log`` at most every ``every`` seconds, and the last
+    step's line. On a quiet console, nothing."""
+
+    def __init__(self, log: Log, steps: int, every: float = 10.0):
         self.log, self.steps, self.every = log, steps, every
-        self.last = time.perf_counter()
+        self.start = self.last = time.perf_counter()
+        console = log if isinstance(log, Console) else None
+        self.quiet = console is not None and console.quiet
+        self.console = console if console is not None and console.terminal else None
 
-    def __call__(self, n: int, t: float, info: StepInfo) -> None:
+    def __call__(self, n: int, t: float, info: StepInfo, row: dict | None = None,
+                 explicit: bool = False) -> None:
+        """Step ``n`` committed at ``t``; ``row``: its history row; ``explicit``: the step
+        counts substeps of central difference, not iterations."""
+        if self.quiet:
+            return
+        status = self.status(t, info, row or {}, explicit)
+        if self.console is not None:
+            self._draw(self.console, n, ", ".join(status))
+            return
         now = time.perf_counter()
         if n == 0 or (n < self.steps and now - self.last < self.every):
             return
         self.last = now
-        self.log(f"step       {n}/{self.steps}  t = {t:.6g}  "
-                 f"iterations {info.iterations}  residual {info.residual:.1e}")
+        self.log(f"step       {n}/{self.steps}  elapsed {_interval(now - self.start)}  "
+                 f"ETA {self.eta(n, now)}  {', '.join(status)}")
+
+    @staticmethod
+    def status(t: float, info: StepInfo, row: dict, explicit: bool = False) -> list[str]:
+        """``t = ...``, ``3 iterations``, ``residual 1.0e-09``, ... of a step (an explicit
+        step: its substeps, no residual); the crack faces, fragments and rigid bodies of
+        ``row`` when it has them."""
+        if explicit:
+            parts = [f"t = {t:.6g}", f"{info.iterations} substeps"]
+        else:
+            parts = [f"t = {t:.6g}", f"{info.iterations} iterations",
+                     f"residual {info.residual:.1e}"]
+        if info.cutbacks:
+            parts.append(f"{info.cutbacks} cutbacks")
+        for key, label in (("crack_faces", "crack faces"), ("fragments", "fragments"),
+                           ("rigid_bodies", "rigid")):
+            if key in row:
+                parts.append(f"{row[key]} {label}")
+        return parts
+
+    def eta(self, n: int, now: float) -> str:
+        """The time left at the mean rate of the steps so far (``?`` before the first)."""
+        if n <= 0:
+            return "?"
+        return _interval((now - self.start) * (self.steps - n) / n)
+
+    def _draw(self, console: Console, n: int, status: str) -> None:
+        bar = console.bar
+        if bar is None:
+            # the width is the terminal's; the height is given, as a terminal may report
+            # none (tqdm then draws nothing)
+            bar = console.bar = tqdm(total=self.steps, file=console.stream, miniters=1,
+                                     nrows=24, bar_format=BAR_FORMAT, desc=status)
+        bar.set_description_str(status, refresh=False)
+        bar.update(n - bar.n)
+        if n >= self.steps:
+            console.close()
+
+
+def _interval(seconds: float) -> str:
+    return tqdm.format_interval(seconds)
 
 
 class OutputStage:
@@ -123,14 +225,16 @@ class OutputStage:
 
     def __call__(self, step: Step, world: World) -> tuple[World, None]:
         info = self.tally.add(step, world)
-        self.history.write(history_row(step.n, world, info, step.event(FractureEvent),
-                                       self.tally.body, self.timer.total(), self.layout))
+        row = history_row(step.n, world, info, step.event(FractureEvent), self.tally.body,
+                          self.timer.total(), self.layout)
+        self.history.write(row)
         for observe in self.observers:
             observe(step.n, world)
         if self.plan.due(step.n):
             self._write(world)
         if self.progress is not None:
-            self.progress(step.n, world.t, info)
+            explicit = isinstance(self.tally.body.disc.stepper, ExplicitStepper)
+            self.progress(step.n, world.t, info, row, explicit)
         return world, None
 
     def _write(self, world: World) -> None:
