@@ -1,5 +1,5 @@
 """The ``fem-frac`` command: ``run`` a case, ``check`` it without solving, ``study`` a grid
-of runs (:mod:`fem_frac.app.study`).
+of runs (:mod:`fem_frac.app.study`), ``plot`` a run's history (:mod:`fem_frac.app.plot`).
 
 Exit codes: 0 success; 2 bad input (case file, mesh, options, a body left free to move), with
 a one-line message and no traceback; 3 a numerical failure (singular system, non-finite
@@ -20,6 +20,7 @@ EXAMPLES = """examples:
   fem-frac run cases/cantilever.yaml
   fem-frac run cases/hollow_sphere.yaml -o results/sphere --set mesh.order=2
   fem-frac study studies/elastic.yaml --workers 2
+  fem-frac plot out/cantilever
   paraview out/cantilever/cantilever.pvd
 """
 
@@ -45,6 +46,7 @@ def _parser() -> argparse.ArgumentParser:
     _run_parser(sub)
     _check_parser(sub)
     _study_parser(sub)
+    _plot_parser(sub)
     return p
 
 
@@ -107,6 +109,34 @@ def _study_parser(sub) -> None:
     study.add_argument("-q", "--quiet", action="store_true", help="print nothing but errors")
 
 
+def _plot_parser(sub) -> None:
+    plot = sub.add_parser(
+        "plot",
+        help="draw a run's history: energies, reactions, cracks, solver cost (PNG)",
+        description="Read history.csv (and summary.json) of a run's output directory and "
+        "write plot_energy.png (energies, energy balance error), plot_reactions.png "
+        "(support reactions, largest displacement), plot_fracture.png (crack faces and "
+        "area, fragments, sites opened; with fracture or fragments) and plot_solver.png "
+        "(iterations or substeps, residual, wall time per step) beside them; prints the "
+        "paths. No other file is touched. Needs matplotlib: pip install 'fem-frac[study]'.",
+    )
+    plot.add_argument("directory", type=Path, metavar="OUT_DIR",
+                      help="output directory of `fem-frac run`")
+
+
+def _plot(args) -> int:
+    from .plot import PlotError, plot_run
+
+    try:
+        paths = plot_run(args.directory)
+    except PlotError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
+    for path in paths:
+        print(path)
+    return 0
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = _parser()
     args = parser.parse_args(argv)
@@ -115,6 +145,8 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     if args.command == "study":
         return _study(args)
+    if args.command == "plot":
+        return _plot(args)
     from ..config import CaseErrors, load_case
 
     source = None
