@@ -1,8 +1,11 @@
 """A VTK time series: one ``.vtu`` per output step and a ``.pvd`` index with real times.
 
-The ``.pvd`` is rewritten after every step through a temporary file and a rename, so an
-interrupted run leaves a valid, viewable series. Points hold reference coordinates; all
-motion goes into the point field ``displacement`` (ParaView: Warp By Vector).
+Every file is written under a scratch name and renamed into place, so an interrupted run
+leaves a valid, viewable series (the ``.pvd`` lists only complete frames) and no write goes
+through a symbolic link planted at a frame's name. Each name is recorded in the directory's
+manifest (:class:`~fem_frac.writers.directory.Manifest`) before the file is created. Points
+hold reference coordinates; all motion goes into the point field ``displacement``
+(ParaView: Warp By Vector).
 """
 
 from __future__ import annotations
@@ -14,12 +17,23 @@ from xml.sax.saxutils import quoteattr
 
 import numpy as np
 
+from .directory import Manifest, create_plain
+
 
 @dataclass
 class SeriesWriter:
+    """``<name>_%06d.vtu`` and ``<name>.pvd`` in ``directory``; ``manifest`` (default: the
+    directory's) records every file written."""
+
     directory: Path
     name: str
     entries: list[tuple[float, str]] = field(default_factory=list)
+    manifest: Manifest | None = None
+
+    def __post_init__(self):
+        self.directory = Path(self.directory)
+        if self.manifest is None:
+            self.manifest = Manifest(self.directory)
 
     @property
     def pvd_path(self) -> Path:
@@ -38,16 +52,20 @@ class SeriesWriter:
         import meshio
 
         filename = f"{self.name}_{len(self.entries):06d}.vtu"
+        scratch = f"{self.name}.vtu.tmp"
+        path = self.manifest.add(scratch, filename)
         mesh = meshio.Mesh(
             points,
             [cells],
             point_data=point_data,
             cell_data={k: [v] for k, v in cell_data.items()},
         )
-        meshio.write(self.directory / filename, mesh, file_format="vtu", binary=True)
+        create_plain(self.directory / scratch)
+        meshio.write(self.directory / scratch, mesh, file_format="vtu", binary=True)
+        os.replace(self.directory / scratch, path)
         self.entries.append((float(time), filename))
         self._write_index()
-        return self.directory / filename
+        return path
 
     def _write_index(self) -> None:
         lines = [
@@ -59,6 +77,8 @@ class SeriesWriter:
             attrs = f'timestep="{time:.17g}" group="" part="0" file={quoteattr(filename)}'
             lines.append(f"    <DataSet {attrs}/>")
         lines += ["  </Collection>", "</VTKFile>", ""]
-        tmp = self.pvd_path.with_suffix(".pvd.tmp")
+        tmp = self.pvd_path.with_name(f"{self.name}.pvd.tmp")
+        self.manifest.add(tmp.name, self.pvd_path.name)
+        create_plain(tmp)
         tmp.write_text("\n".join(lines))
         os.replace(tmp, self.pvd_path)

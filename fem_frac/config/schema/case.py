@@ -2,9 +2,9 @@
 
 from __future__ import annotations
 
-from typing import Literal
+from typing import ClassVar, Literal
 
-from pydantic import Field
+from pydantic import Field, field_validator
 
 from .analysis import Analysis, StaticAnalysis
 from .base import Section
@@ -16,12 +16,37 @@ from .material import Material, Plasticity, Region
 
 class Output(Section):
     directory: str | None = Field(
-        default=None, description="default: out/<case name> under the working directory"
+        default=None, description="default: out/<case name> under the working directory; "
+        "the run writes only inside it"
     )
-    name: str | None = Field(default=None, description="base name of the .pvd; default: case")
+    name: str | None = Field(
+        default=None, description="base name of the .pvd and .vtu files, a plain file name "
+        "(no '/', not '.' or '..'); default: case")
     crack_surface: bool = Field(
         default=False, description="with fracture: also write the crack faces as a surface "
         "series <name>_crack.pvd (written, empty until the first crack, at every output step)")
+
+    #: Longest ``name`` (bytes, UTF-8): the files add up to 17 characters to it.
+    NAME_MAX_BYTES: ClassVar[int] = 128
+
+    @field_validator("name")
+    @classmethod
+    def _plain_name(cls, v: str | None) -> str | None:
+        """A plain file name: the files go into the output directory, never elsewhere."""
+        if v is None:
+            return v
+        if not v:
+            raise ValueError("must not be empty")
+        if v in (".", ".."):
+            raise ValueError(f"{v!r} is a directory, not a file name")
+        if "/" in v or "\\" in v:
+            raise ValueError("must be a plain file name, without '/' or '\\' (the output "
+                             "directory is -o DIR or output.directory)")
+        if any(ord(c) < 32 or ord(c) == 127 for c in v):
+            raise ValueError("must not contain control characters (NUL, newline, ...)")
+        if len(v.encode("utf-8", "surrogatepass")) > cls.NAME_MAX_BYTES:
+            raise ValueError(f"is longer than {cls.NAME_MAX_BYTES} bytes")
+        return v
 
 
 class Reference(Section):

@@ -82,6 +82,15 @@ class MeshSection(Section):
         "elements around each vertex (B-bar), which removes volumetric locking under "
         "isochoric plastic flow and near-incompressibility; order 1 only",
     )
+    allow_geo_commands: bool = Field(
+        default=False,
+        description="let a .geo file (and the files it includes) use the gmsh commands that "
+        "run programs or write, create or remove files (SystemCall, Printf > file, Save, "
+        "Print, CreateDir, Exit, Plugin, OnelabRun, ..., and options naming log files or "
+        "programs). These run with your permissions when the mesh is built, so a .geo from "
+        "someone else can do anything you can: set true only for a file you trust. "
+        "See docs/security.md",
+    )
 
     @model_validator(mode="after")
     def _one_source(self):
