@@ -170,20 +170,20 @@ class Progress:
 
     @staticmethod
     def status(t: float, info: StepInfo, row: dict, explicit: bool = False) -> list[str]:
-        """``t = ...``, ``3 iterations``, ``residual 1.0e-09``, ... of a step (an explicit
-        step: its substeps, no residual); the crack faces, fragments and rigid bodies of
-        ``row`` when it has them."""
-        if explicit:
-            parts = [f"t = {t:.6g}", f"{info.iterations} substeps"]
-        else:
-            parts = [f"t = {t:.6g}", f"{info.iterations} iterations",
-                     f"residual {info.residual:.1e}"]
+        """``t = ...``, ``3 iterations`` (an explicit step: its substeps), the crack faces,
+        fragments and rigid bodies of ``row`` when it has them, then the residual (none
+        for an explicit step)."""
+        parts = [f"t = {t:.6g}",
+                 _count(info.iterations, "substep" if explicit else "iteration")]
         if info.cutbacks:
-            parts.append(f"{info.cutbacks} cutbacks")
-        for key, label in (("crack_faces", "crack faces"), ("fragments", "fragments"),
-                           ("rigid_bodies", "rigid")):
+            parts.append(_count(info.cutbacks, "cutback"))
+        for key, word in (("crack_faces", "crack face"), ("fragments", "fragment")):
             if key in row:
-                parts.append(f"{row[key]} {label}")
+                parts.append(_count(row[key], word))
+        if "rigid_bodies" in row:
+            parts.append(f"{row['rigid_bodies']} rigid")
+        if not explicit:
+            parts.append(f"residual {info.residual:.1e}")
         return parts
 
     def eta(self, n: int, now: float) -> str:
@@ -196,13 +196,19 @@ class Progress:
         bar = console.bar
         if bar is None:
             # the width is the terminal's; the height is given, as a terminal may report
-            # none (tqdm then draws nothing)
-            bar = console.bar = tqdm(total=self.steps, file=console.stream, miniters=1,
-                                     nrows=24, bar_format=BAR_FORMAT, desc=status)
+            # none (tqdm then draws nothing); the rate behind the ETA is an average that
+            # follows slower or faster stretches of steps without jumping at each one
+            bar = console.bar = tqdm(total=self.steps, file=console.stream, desc=status,
+                                     bar_format=BAR_FORMAT, miniters=1, smoothing=0.1,
+                                     nrows=24)
         bar.set_description_str(status, refresh=False)
         bar.update(n - bar.n)
         if n >= self.steps:
             console.close()
+
+
+def _count(n: int, word: str) -> str:
+    return f"{n} {word}" if n == 1 else f"{n} {word}s"
 
 
 def _interval(seconds: float) -> str:
