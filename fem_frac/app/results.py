@@ -5,12 +5,13 @@ from __future__ import annotations
 
 import sys
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 
 from .. import __version__
 from ..fracture.stage import FractureEvent
-from ..fracture.topology import CRACK
+from ..fracture.summary import CrackFaces, crack_faces, crack_openings
 from ..solve.discretization import Discretization
 from ..solve.state import State, StepInfo
 from ..world.state import Body, World
@@ -73,20 +74,113 @@ def write_step(writer: SeriesWriter, world: World, data, layout: Layout) -> None
     writer.write(world.t, points, (kind, cells), point_data, cell_data)
 
 
-def write_crack_surface(writer: SeriesWriter, world: World, last_mesh) -> None:
-    """The crack faces (both sides) of the deformable part as triangles over the mesh's
-    vertices, with their displacement; written at every output step, empty before the first
-    crack and once no finite element is left (ParaView drops a series' part that first
-    appears mid-way)."""
-    body = world.body
-    mesh = body.mesh if body is not None else last_mesh
-    tri = np.asarray(mesh.boundaries.get(CRACK, np.zeros((0, 3), dtype=np.int64)))
-    if body is None:
-        tri, u = tri[:0], np.zeros((mesh.n_points, 3))
-    else:
-        u = body.state.u.reshape(-1, 3)[: mesh.n_points]  # P2: vertices come first
-    writer.write(world.t, mesh.points, ("triangle", tri.astype(np.int64)),
-                 {"displacement": u}, {})
+class CrackWriter:
+    """The crack-face series ``<name>_crack.pvd``: one triangle per crack face (its two sides
+    paired, :func:`~fem_frac.fracture.summary.crack_faces`), at the reference position of
+    its corners, with
+
+    - point field ``displacement``: the mean of the two sides' displacements at the corner
+      (Warp By Vector puts the face midway across the gap),
+    - cell fields ``opening (3)``: the displacement jump ``u(b) - u(a)`` at the face's
+      centroid, ``opening_norm``, ``normal_opening`` (its component along ``normal``,
+      positive when the faces part), ``normal (3)``: the unit normal from side a to side b,
+      ``opened_step`` and ``opened_time``: when the face first appeared.
+
+    A face's step is the first step :meth:`record` saw it in (call it every step: the output
+    stage's observers are); faces are named by their corners' reference positions, which
+    later cracks and extractions keep. Faces whose other side has left with a rigid body are
+    not written. A step without a crack face (before the first crack, or once no finite
+    element is left) holds one ``vertex`` cell at the centre of the mesh's bounding box with
+    ``opened_step`` -1: meshio cannot read a .vtu without cells, ParaView drops a series'
+    part that first appears mid-way, and the rigid fragments of the main series show their
+    own faces."""
+
+    def __init__(self, series: SeriesWriter):
+        self.series = series
+        self.opened: dict[bytes, tuple[int, float]] = {}
+        self.step = -1  # the last step recorded (-1: none; a face first seen then is unknown)
+        self._mesh, self._faces = None, None
+
+    @property
+    def pvd_path(self):
+        return self.series.pvd_path
+
+    @property
+    def entries(self) -> list[tuple[float, str]]:
+        return self.series.entries
+
+    def __call__(self, n: int, world: World) -> None:
+        self.record(n, world)
+
+    def record(self, n: int, world: World) -> None:
+        """Note the crack faces of step ``n`` not seen before as opened in it."""
+        self.step = n
+        if world.body is not None and world.body.mesh is not self._mesh:
+            self._note(self._faces_of(world.body.mesh), n, world.t)
+
+    def write(self, world: World, last_mesh) -> Path:
+        """One step of the series; ``last_mesh``: the mesh of the last body (placed the
+        empty step's vertex once no finite element is left)."""
+        body = world.body
+        if body is None:
+            data = _no_crack_face(last_mesh)
+        else:
+            faces = self._faces_of(body.mesh)
+            self._note(faces, self.step, world.t)  # (where no step was recorded)
+            data = (_no_crack_face(body.mesh) if len(faces) == 0
+                    else self._frame(body, faces))
+        return self.series.write(world.t, *data)
+
+    def _faces_of(self, mesh) -> CrackFaces:
+        if mesh is not self._mesh:
+            self._mesh, self._faces = mesh, crack_faces(mesh)
+        return self._faces
+
+    def _note(self, faces: CrackFaces, n: int, t: float) -> None:
+        for key in faces.keys:
+            self.opened.setdefault(key, (n, t))
+
+    def _frame(self, body: Body, faces: CrackFaces):
+        u = body.state.u.reshape(-1, 3)
+        opening = crack_openings(body.disc.space, faces, u)
+        mid = 0.5 * (u[faces.a] + u[faces.b])  # (k, 3 corners, 3)
+        when = [self.opened[key] for key in faces.keys]
+        k = len(faces)
+        cell_data = {"opening": opening, "opening_norm": np.linalg.norm(opening, axis=1),
+                     "normal_opening": np.einsum("ki,ki->k", opening, faces.normal),
+                     "normal": faces.normal,
+                     "opened_step": np.array([w[0] for w in when], dtype=np.int32),
+                     "opened_time": np.array([w[1] for w in when], dtype=float)}
+        return (body.mesh.points[faces.a].reshape(-1, 3),
+                ("triangle", np.arange(3 * k, dtype=np.int64).reshape(k, 3)),
+                {"displacement": mid.reshape(-1, 3)}, cell_data)
+
+
+def _no_crack_face(mesh):
+    """A step of the crack series without a crack face: one vertex cell, every field."""
+    centre = 0.5 * (mesh.points.min(axis=0) + mesh.points.max(axis=0))
+    zero3 = np.zeros((1, 3))
+    return (centre[None, :], ("vertex", np.zeros((1, 1), dtype=np.int64)),
+            {"displacement": zero3},
+            {"opening": zero3, "opening_norm": np.zeros(1), "normal_opening": np.zeros(1),
+             "normal": zero3, "opened_step": np.full(1, -1, dtype=np.int32),
+             "opened_time": np.full(1, np.nan)})
+
+
+def write_crack_surface(writer: CrackWriter | SeriesWriter, world: World, last_mesh) -> Path:
+    """One step of the crack-face series (:class:`CrackWriter`). A plain ``SeriesWriter``
+    gets a CrackWriter kept for it (no step is recorded then: ``opened_step`` is -1, and
+    ``opened_time`` the first output time that showed the face)."""
+    if not isinstance(writer, CrackWriter):
+        kept = _KEPT.get(id(writer))
+        if kept is None or kept.series is not writer or not writer.entries:
+            kept = _KEPT[id(writer)] = CrackWriter(writer)
+        writer = kept
+    return writer.write(world, last_mesh)
+
+
+# the CrackWriter of each plain SeriesWriter given to write_crack_surface
+_KEPT: dict[int, CrackWriter] = {}
 
 
 def reaction_forces(disc: Discretization, state: State | None) -> dict[str, np.ndarray]:
