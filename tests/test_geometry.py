@@ -334,6 +334,87 @@ def test_bad_geo_raises_mesh_error(tmp_path, text, message):
     assert "\n" not in str(info.value)
 
 
+# --- .geo commands that run programs or write files (docs/security.md) -----------------------
+
+
+def _uses(tmp_path, text, name="t.geo"):
+    from fem_frac.mesh.geometry import geo_commands
+
+    (tmp_path / name).write_text(text)
+    return [(c.path.name, c.line, c.command) for c in geo_commands(tmp_path / name)]
+
+
+def test_the_shipped_geo_files_use_no_refused_command():
+    from fem_frac.mesh.geometry import geo_commands
+
+    for geo in sorted(MESHES.glob("*.geo")):
+        assert geo_commands(geo) == [], geo
+
+
+@pytest.mark.parametrize(("text", "command"), [
+    ('SystemCall "rm -rf ~";', "SystemCall"),
+    ('System "ls";', "System"),
+    ('NonBlockingSystemCall StrCat("x", "y");', "NonBlockingSystemCall"),
+    ('OnelabRun("client", "cmd");', "OnelabRun"),
+    ('CreateDir "d";', "CreateDir"),
+    ('Save "x.msh";', "Save"),
+    ('Save View[0] "v.pos";', "Save"),
+    ('Print Sprintf("shot%g.png", 1);', "Print"),
+    ("Exit;", "Exit"),
+    ("Plugin(Bubbles).Run;", "Plugin"),
+    ('Printf("%g", 1) > "f.txt";', "Printf > file"),
+    ("Printf('(%g)', 1) >> 'f.txt';", "Printf > file"),
+    ('General.LogFileName = "x.log";', "General.LogFileName"),
+    ('Solver.Executable0 = "sh";', "Solver.Executable0"),
+    ('Geometry.DoubleClickedPointCommand = "x";', "Geometry.DoubleClickedPointCommand"),
+    ('View[0].FileName = "x";', "View.FileName"),
+    ('Include StrCat(CurrentDir, "x.geo");', "Include"),
+    ('Merge "x.gz";', "Merge x.gz"),
+    ('Merge "solver.py";', "Merge solver.py"),
+])
+def test_a_command_that_runs_a_program_or_writes_a_file_is_found(tmp_path, text, command):
+    assert _uses(tmp_path, f"x = 1;\n\n{text}\n") == [("t.geo", 3, command)]
+
+
+def test_words_in_comments_strings_and_names_are_no_commands(tmp_path):
+    text = """// SystemCall "rm";
+/* Save "x.msh";
+   Exit; */
+Printf("SystemCall and Exit > here");
+Printf("%g", 1);
+Print.Width = 800; Mesh.SaveAll = 0; General.Terminal = 0;
+System = 3; x = System + 1; y[] = {System};
+Mesh.CharacteristicLengthMax = 0.1;
+s = 'Save "x"';
+"""
+    assert _uses(tmp_path, text) == []
+
+
+def test_included_and_merged_scripts_are_read_relative_to_the_including_file(tmp_path):
+    (tmp_path / "a").mkdir()
+    (tmp_path / "a" / "b").mkdir()
+    (tmp_path / "a" / "inc.geo").write_text('Include "b/deep.geo";\nMerge "b/script.txt";\n'
+                                           'Merge "b/mesh.msh";\nMerge "b/part.step";\n')
+    (tmp_path / "a" / "b" / "deep.geo").write_text('\nSave "x";\nInclude "../inc.geo";\n')
+    (tmp_path / "a" / "b" / "script.txt").write_text('Exit;\n')
+    (tmp_path / "a" / "b" / "mesh.msh").write_text('$MeshFormat\nSystemCall "x";\n')
+    (tmp_path / "a" / "b" / "part.step").write_text('SystemCall "x";\n')
+    assert _uses(tmp_path, 'Include "a/inc.geo";\n') == [
+        ("deep.geo", 2, "Save"), ("script.txt", 1, "Exit")]
+
+
+def test_a_refused_geo_file_is_not_read_by_gmsh_unless_allowed(tmp_path):
+    made = tmp_path / "made.txt"
+    geo = tmp_path / "w.geo"
+    geo.write_text('SetFactory("OpenCASCADE");\nBox(1) = {0, 0, 0, 1, 1, 1};\n'
+                   f'Printf("hi") > "{made}";\n')
+    with pytest.raises(MeshError, match=r"w\.geo:3: Printf > file writes a file") as info:
+        from_geo_file(geo, 0.5, 1)
+    assert "\n" not in str(info.value) and not made.exists()
+    assert from_geo_file(geo, 0.5, 1, allow_commands=True).n_tets > 0
+    assert made.read_text() == "hi\n"
+
+
 def test_a_part_one_element_thick_gets_no_flat_tets():
     """HXT leaves a flat tet (four coplanar corners, quality ~1e-14) in a 1 x 0.05 x 0.05 box
     meshed at 0.05; the mesher falls back on Delaunay there, whose tets are all sound."""

@@ -12,6 +12,7 @@ hard links stops the run before anything is written (the run would write through
 
 from __future__ import annotations
 
+import contextlib
 import glob
 import os
 import re
@@ -166,7 +167,7 @@ def prepare_directory(directory: Path, name: str, overwrite: bool) -> Path:
 def _check(directory: Path, name: str, overwrite: bool) -> list[str]:
     """The checks of :func:`check_directory`; returns the names ``--overwrite`` removes."""
     _plain(name)
-    _check_location(directory)
+    check_location(directory)
     if not os.path.isdir(directory):
         return []
     earlier = _earlier_files(directory, name)
@@ -186,9 +187,10 @@ def _check(directory: Path, name: str, overwrite: bool) -> list[str]:
     return remove
 
 
-def _check_location(directory: Path) -> None:
-    """The directory exists as one, or its nearest existing parent is a writable
-    directory."""
+def check_location(directory: Path) -> None:
+    """Raise :class:`FemFracError` unless ``directory`` is a writable directory or its
+    nearest existing parent is one (it can be made); creates nothing."""
+    directory = Path(directory)
     if os.path.lexists(directory) and not os.path.isdir(directory):
         raise FemFracError(f"{directory}: exists and is not a directory")
     for parent in [directory, *directory.parents]:
@@ -315,3 +317,27 @@ def _open_plain(path: Path, flags: int) -> int:
 def create_plain(path: Path) -> None:
     """Create (or empty) the plain file ``path``, never through a symbolic link."""
     os.close(_open_plain(path, os.O_WRONLY | os.O_CREAT | os.O_TRUNC))
+
+
+def replace_file(path: Path, data: bytes | str) -> None:
+    """Write ``data`` to ``path`` through a new scratch file beside it and a rename: a
+    symbolic link at ``path`` is replaced, never written through, and a reader never sees
+    half a file."""
+    import secrets
+
+    path = Path(path)
+    while True:  # a new name (O_EXCL: nothing there is followed), permissions from the umask
+        tmp = path.parent / f".{path.name}.{secrets.token_hex(4)}.tmp"
+        try:
+            fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o666)
+            break
+        except FileExistsError:
+            continue
+    try:
+        with os.fdopen(fd, "wb") as f:
+            f.write(data.encode() if isinstance(data, str) else data)
+        os.replace(tmp, path)
+    except BaseException:
+        with contextlib.suppress(OSError):
+            os.unlink(tmp)
+        raise

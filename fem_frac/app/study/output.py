@@ -3,12 +3,14 @@
 from __future__ import annotations
 
 import csv
+import io
 import itertools
 import json
 import os
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from ...writers.directory import replace_file
 from .analysis import evaluate, methods, pareto_front, plottable, rates
 from .runs import Result
 from .spec import Study, value_text
@@ -26,22 +28,23 @@ def write_csv(study: Study, results: list[Result], path: Path) -> None:
              "wall_time_s", *(f"time_{s.replace(' ', '_')}_s" for s in stages), "peak_mib",
              "quantity", "value", "reference_value", "error", "message"])
     quantity = study.quantity or "reference"
-    with path.open("w", newline="") as f:
-        w = csv.writer(f)
-        w.writerow(cols)
-        for r in results:
-            s = r.summary or {}
-            wt = s.get("wall_time_s", {})
-            if r.ok and study.quantity is None and "reference" in s:
-                quantity = s["reference"]["quantity"]
-            w.writerow([
-                r.run.run_id, *(value_text(r.run.settings[k]).strip('"') for k in study.keys),
-                r.run.method, "ok" if r.ok else "failed", r.exit_code,
-                r.dofs, s.get("counts", {}).get("elements"), _fmt(r.h),
-                _fmt(wt.get("total")), *(_fmt(wt.get(st)) for st in stages), _fmt(r.peak_mib),
-                quantity if r.ok else "", _fmt(r.value), _fmt(r.reference), _fmt(r.error),
-                r.message,
-            ])
+    f = io.StringIO(newline="")
+    w = csv.writer(f)
+    w.writerow(cols)
+    for r in results:
+        s = r.summary or {}
+        wt = s.get("wall_time_s", {})
+        if r.ok and study.quantity is None and "reference" in s:
+            quantity = s["reference"]["quantity"]
+        w.writerow([
+            r.run.run_id, *(value_text(r.run.settings[k]).strip('"') for k in study.keys),
+            r.run.method, "ok" if r.ok else "failed", r.exit_code,
+            r.dofs, s.get("counts", {}).get("elements"), _fmt(r.h),
+            _fmt(wt.get("total")), *(_fmt(wt.get(st)) for st in stages), _fmt(r.peak_mib),
+            quantity if r.ok else "", _fmt(r.value), _fmt(r.reference), _fmt(r.error),
+            r.message,
+        ])
+    replace_file(path, f.getvalue())
 
 
 def _fmt(x) -> str:
@@ -91,11 +94,14 @@ def plot(study: Study, results: list[Result], path: Path) -> None:
     ax.set_ylabel(_error_label(study, results))
     ax.set_title(study.spec.title or study.name, fontsize=10)
     ax.grid(True, which="both", alpha=0.3)
-    ax.legend(fontsize=7.5, loc="upper center", bbox_to_anchor=(0.5, -0.13), frameon=False,
-              title=f"fitted rate: slope of log error against log {against}",
-              title_fontsize=7.5)
-    fig.savefig(path, bbox_inches="tight")
+    if ax.get_legend_handles_labels()[0]:  # nothing to name when every run failed
+        ax.legend(fontsize=7.5, loc="upper center", bbox_to_anchor=(0.5, -0.13),
+                  frameon=False, title=f"fitted rate: slope of log error against log {against}",
+                  title_fontsize=7.5)
+    png = io.BytesIO()
+    fig.savefig(png, format="png", bbox_inches="tight")
     plt.close(fig)
+    replace_file(path, png.getvalue())
 
 
 def _plot_methods(ax, results: list[Result], against: str) -> None:
@@ -137,7 +143,7 @@ class Outcome:
 def write_outputs(study: Study, results: list[Result], out_dir: Path) -> Outcome:
     csv_path, json_path = out_dir / "study.csv", out_dir / "study.json"
     write_csv(study, results, csv_path)
-    json_path.write_text(json.dumps(study_json(study, results), indent=2) + "\n")
+    replace_file(json_path, json.dumps(study_json(study, results), indent=2) + "\n")
     png: Path | None = out_dir / "study.png"
     warnings = []
     try:

@@ -15,6 +15,8 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
+from ...errors import FemFracError
+from ...writers.directory import check_location, name_problem, replace_file
 from .analysis import evaluate, summary_value
 from .spec import Run, Study
 
@@ -132,8 +134,8 @@ def execute(case_path: str, run_dir: str, overrides: tuple[str, ...],
     record = {"exit_code": code, "message": message.removeprefix("error: "),
               "peak_mib": round(peak, 1) if peak is not None else None,
               "process_s": round(time.perf_counter() - t0, 3)}
-    if Path(run_dir).is_dir():
-        (Path(run_dir) / "study_run.json").write_text(json.dumps(record, indent=2) + "\n")
+    if Path(run_dir).is_dir() and not Path(run_dir).is_symlink():
+        replace_file(Path(run_dir) / "study_run.json", json.dumps(record, indent=2) + "\n")
     return record
 
 
@@ -154,15 +156,53 @@ def _record(run_dir: Path) -> dict:
         return {}
 
 
+def runs_directory(out_dir: Path) -> Path:
+    """``out_dir/runs``, made if need be; :class:`FemFracError` when it cannot be, or is a
+    symbolic link or no directory (the runs would be written elsewhere)."""
+    out_dir = Path(out_dir)
+    runs_dir = out_dir / "runs"
+    check_location(out_dir)
+    if runs_dir.is_symlink() or (os.path.lexists(runs_dir) and not runs_dir.is_dir()):
+        raise FemFracError(f"{runs_dir}: is a symbolic link or no directory; a study writes "
+                           "its runs only inside its output directory: remove it or use -o DIR")
+    try:
+        runs_dir.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise FemFracError(f"{runs_dir}: cannot create it: {exc.strerror or exc}") from None
+    return runs_dir
+
+
+def run_directory(runs_dir: Path, run: Run) -> Path:
+    """The directory of ``run``: ``runs_dir/<run id>``, a plain name directly inside
+    ``runs_dir``; :class:`FemFracError` when the id is no plain name or the directory is a
+    symbolic link or no directory (the run would be written elsewhere)."""
+    problem = name_problem(run.run_id)
+    if problem is not None:
+        raise FemFracError(f"run id {run.run_id!r}: {problem}")
+    path = runs_dir / run.run_id
+    if path.is_symlink() or (os.path.lexists(path) and not path.is_dir()):
+        raise FemFracError(f"{path}: is a symbolic link or no directory; a run is written only "
+                           "inside the study's output directory: remove it")
+    return path
+
+
 def run_study(study: Study, out_dir: Path, workers: int | None = None,
               log: Callable[[str], None] = lambda _m: None) -> list[Result]:
-    """Run every run of the study not finished earlier; returns the results in grid order."""
-    runs_dir = out_dir / "runs"
-    runs_dir.mkdir(parents=True, exist_ok=True)
+    """Run every run of the study not finished earlier; returns the results in grid order.
+
+    Every run is written in its own directory directly inside ``out_dir/runs``; a run whose
+    directory is a symbolic link (or no directory) is not run and fails with that message.
+    Raises :class:`FemFracError` when ``out_dir/runs`` cannot be made inside ``out_dir``."""
+    runs_dir = runs_directory(out_dir)
     n = len(study.runs)
     results: dict[int, Result] = {}
     todo = []
     for run in study.runs:
+        try:
+            run_directory(runs_dir, run)
+        except FemFracError as exc:
+            results[run.index] = Result(run, "failed", None, str(exc))
+            continue
         summary = _load_summary(runs_dir / run.run_id)
         if summary is None:
             todo.append(run)

@@ -114,11 +114,16 @@ def value_text(value) -> str:
 def run_id(settings: dict) -> str:
     """A stable, file-name-safe id from the run's settings: ``mesh.order=2_mesh.element_size=0.02``.
 
-    Characters outside ``[A-Za-z0-9.=+-]`` become ``-``; a short hash of the exact settings
-    is appended when that loses information, so different settings never share an id.
+    It is a plain directory name (the run's directory under ``runs/``): characters outside
+    ``[A-Za-z0-9.=+-_]`` (``/`` among them) become ``-``, and an id that would start with
+    ``.`` or ``-`` (``..``, a hidden name, an option) starts with ``run_``; a short hash of
+    the exact settings is appended when that loses information, so different settings never
+    share an id.
     """
     text = "_".join(f"{k}={value_text(v).strip(chr(34))}" for k, v in settings.items())
     safe = re.sub(r"[^A-Za-z0-9.=+\-_]", "-", text)
+    if not safe or safe.startswith((".", "-")):
+        safe = f"run_{safe}"
     if safe != text or len(safe) > 120:
         digest = hashlib.sha1(json.dumps(settings, sort_keys=True).encode()).hexdigest()[:8]
         safe = f"{safe[:110]}_{digest}"
