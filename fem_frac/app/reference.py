@@ -72,6 +72,7 @@ def check_reference(case: schema.Case) -> None:
                   and case.plasticity.kinematic_hardening == 0, name,
                   "perfect plasticity (no hardening)")
             _need(geometry.sector == "octant", name, "the octant sector")
+            _below_limit_load(case, geometry)
     elif name == "free_vibration":
         _need(isinstance(geometry, schema.BoxGeometry), name, "a box geometry")
         _need(isinstance(case.analysis, schema.DynamicAnalysis), name, "a dynamic analysis")
@@ -87,6 +88,36 @@ def check_reference(case: schema.Case) -> None:
                   f"symmetry on '{face}'")
         d = _by_type(case, schema.Displacement, "xmax")
         _need(d is not None and d.x is not None, name, "an x displacement on 'xmax'")
+
+
+def _below_limit_load(case: schema.Case, geometry) -> None:
+    """Hill's solution exists below the limit pressure of the sphere, 2 sigma_Y ln(b/a)
+    (the whole wall flows at it: no equilibrium, the solve cannot converge)."""
+    from ..solve.loading import make_curve, resolve_curves, time_grid
+
+    i = max(i for i, bc in enumerate(case.boundary_conditions)
+            if isinstance(bc, schema.Pressure) and bc.boundary == "inner")
+    p = case.boundary_conditions[i]
+    names, _, _ = resolve_curves([(("boundary_conditions", i, "curve"), p.curve)],
+                                 case.load_curves, case.analysis)
+    t_end = time_grid(case.analysis).t_end
+    table = {"ramp": schema.RampCurve(type="ramp"),
+             "constant": schema.ConstantCurve(type="constant"), **case.load_curves}
+    curve = table[names[0]]
+    times = [0.0, t_end]
+    if isinstance(curve, schema.RampCurve):
+        times += [curve.t_start, curve.t_end or t_end]
+    elif isinstance(curve, schema.TableCurve):
+        times += [t for t, _ in curve.points]
+    factor = make_curve(curve, t_end)
+    peak = max(abs(p.pressure * factor(t)) for t in times if 0.0 <= t <= t_end)
+    sy = case.plasticity.yield_stress
+    limit = 2.0 * sy * np.log(geometry.outer_radius / geometry.inner_radius)
+    if peak >= limit:
+        raise CaseError(("boundary_conditions", i, "pressure"),
+                        f"reference 'hill_sphere' needs a pressure below the limit load "
+                        f"2 sigma_Y ln(b/a) = {limit:.4g} (the whole wall flows there: no "
+                        f"equilibrium); the pressure reaches {peak:.4g}")
 
 
 class Recorder:

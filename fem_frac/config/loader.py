@@ -14,13 +14,16 @@ from pathlib import Path
 from pydantic import BaseModel, ValidationError
 
 from ..errors import CaseError, FemFracError
+from .safe_yaml import MAX_DEPTH, load_yaml, plain_data, read_text
 from .schema import Case
 
 
 class CaseErrors(FemFracError):
-    """Several located case errors at once (all validation errors of one file)."""
+    """Several located case errors at once (all validation errors of one file), in the
+    order of their place in the file (``--set`` overrides last)."""
 
     def __init__(self, errors: list[CaseError], source: Source):
+        errors = sorted(errors, key=lambda e: source.order(e.path))
         super().__init__("; ".join(e.message for e in errors))
         self.errors = errors
         self.source = source
@@ -28,21 +31,44 @@ class CaseErrors(FemFracError):
     def lines(self) -> list[str]:
         return [self.source.format(e) for e in self.errors]
 
+    def line(self) -> str:
+        """The first error, and how many more there are: one line."""
+        more = len(self.errors) - 1
+        return self.lines()[0] + (f" (and {more} more error{'s' * (more > 1)})" if more
+                                  else "")
+
 
 @dataclass
 class Source:
-    """Where each key of a case came from: a line of the file, or a ``--set`` override."""
+    """Where each key of a case came from: a line of the file, or a ``--set`` override
+    (which also owns the mappings and lists it had to create on its way)."""
 
     path: Path
     data: object  # ruamel CommentedMap after overrides
     overrides: dict[tuple, str] = field(default_factory=dict)
+    created: dict[tuple, str] = field(default_factory=dict)
+
+    def _override(self, loc: tuple) -> str | None:
+        for table in (self.overrides, self.created):
+            for key_path, text in table.items():
+                if tuple(loc[: len(key_path)]) == key_path:
+                    return text
+        return None
 
     def locate(self, loc: tuple) -> str:
-        for key_path, text in self.overrides.items():
-            if tuple(loc[: len(key_path)]) == key_path:
-                return f"{self.path}: --set {text}"
+        text = self._override(loc)
+        if text is not None:
+            return f"{self.path}: --set {text}"
         line, col = _position(self.data, loc)
         return f"{self.path}:{line}:{col}"
+
+    def order(self, loc: tuple) -> tuple:
+        """A sort key: place in the file, overrides after every line."""
+        text = self._override(loc)
+        if text is not None:
+            return (1, list(self.overrides.values()).index(text)
+                    if text in self.overrides.values() else 0, 0)
+        return (0, *_position(self.data, loc))
 
     def format(self, error: CaseError) -> str:
         return f"{self.locate(error.path)}: {format_key(error.path)}: {error.message}"
@@ -57,47 +83,31 @@ def format_key(loc: tuple) -> str:
 
 
 def _position(data, loc: tuple) -> tuple[int, int]:
-    """1-based (line, column) of the deepest key of ``loc`` present in the YAML tree."""
+    """1-based (line, column) of the deepest key of ``loc`` present in the YAML tree (keys
+    an override added have no position: their parent's is kept)."""
     node, pos = data, (0, 0)
     for part in loc:
         lc = getattr(node, "lc", None)
         if isinstance(node, dict) and part in node:
-            if lc is not None:
-                pos = lc.key(part)
+            try:
+                pos = lc.key(part) if lc is not None else pos
+            except (KeyError, TypeError):
+                pass
             node = node[part]
         elif isinstance(node, list) and isinstance(part, int) and 0 <= part < len(node):
-            if lc is not None:
-                pos = lc.item(part)
+            try:
+                pos = lc.item(part) if lc is not None else pos
+            except (KeyError, IndexError, TypeError):
+                pass
             node = node[part]
         # otherwise: a union tag inserted by pydantic, or a missing key (stay at the parent)
     return pos[0] + 1, pos[1] + 1
 
 
-def _yaml():
-    from ruamel.yaml import YAML
-
-    y = YAML(typ="rt")  # round-trip keeps line numbers; YAML 1.2: `1e9` is a float
-    y.allow_duplicate_keys = False
-    return y
-
-
 def read_yaml(path: Path):
-    """Parse ``path`` keeping positions; YAML syntax errors become a located CaseError."""
-    from ruamel.yaml.error import MarkedYAMLError, YAMLError
-
-    try:
-        text = path.read_text()
-    except OSError as exc:
-        raise FemFracError(f"{path}: cannot read case file: {exc.strerror}") from None
-    try:
-        data = _yaml().load(text)
-    except MarkedYAMLError as exc:
-        mark = exc.problem_mark or exc.context_mark
-        where = f"{path}:{mark.line + 1}:{mark.column + 1}" if mark else str(path)
-        problem = " ".join(str(exc.problem or exc.context or "invalid YAML").split())
-        raise FemFracError(f"{where}: YAML: {problem}") from None
-    except YAMLError as exc:
-        raise FemFracError(f"{path}: YAML: {' '.join(str(exc).split())}") from None
+    """Parse ``path`` keeping positions; every problem (size, encoding, syntax, nesting)
+    becomes a located :class:`FemFracError`."""
+    data = load_yaml(read_text(path), str(path))
     if not isinstance(data, dict):
         raise FemFracError(f"{path}:1:1: the case file must be a mapping of sections")
     return data
@@ -107,69 +117,81 @@ def parse_override(text: str) -> tuple[tuple, object]:
     """``"material.youngs_modulus=3e8"`` -> (("material", "youngs_modulus"), 3e8).
 
     List items are addressed by index: ``boundary_conditions.1.pressure=2e6`` or
-    ``boundary_conditions[1].pressure=2e6``. The value is parsed as YAML.
+    ``boundary_conditions[1].pressure=2e6``. The value is parsed as YAML. Raises
+    :class:`FemFracError` naming the option.
     """
     key, sep, value = text.partition("=")
     if not sep or not key.strip():
         raise FemFracError(f"--set {text}: expected KEY.PATH=VALUE")
     parts: list = []
     for piece in key.strip().replace("[", ".").replace("]", "").split("."):
-        if not piece:
+        if not piece.strip():
             raise FemFracError(f"--set {text}: empty key in '{key}'")
-        parts.append(int(piece) if piece.isdigit() else piece)
-    import io
-
-    parsed = _yaml().load(io.StringIO(value)) if value.strip() else None
+        parts.append(int(piece) if piece.isdigit() and piece.isascii() else piece.strip())
+    if len(parts) > MAX_DEPTH:
+        raise FemFracError(f"--set {text}: a key path of more than {MAX_DEPTH} parts")
+    parsed = load_yaml(value, f"--set {text}") if value.strip() else None
     return tuple(parts), parsed
 
 
-def apply_override(data, key_path: tuple, value, text: str) -> None:
-    node = data
-    for i, part in enumerate(key_path[:-1]):
-        nxt = key_path[i + 1]
+def apply_override(data, key_path: tuple, value, text: str) -> list[tuple]:
+    """Set ``key_path`` of ``data`` to ``value``, creating the mappings (or lists) on the
+    way that are absent; returns the paths of those it created."""
+    node, created = data, []
+    for i, part in enumerate(key_path):
+        here = format_key(key_path[:i]) if i else "the case"
         if isinstance(node, list):
             if not isinstance(part, int) or not 0 <= part < len(node):
-                raise FemFracError(f"--set {text}: no item {part} in {format_key(key_path[:i])}")
+                raise FemFracError(f"--set {text}: {here} has no item {part} "
+                                   f"(it has {len(node)})")
+        elif isinstance(node, dict):
+            part = str(part)
+        else:
+            raise FemFracError(f"--set {text}: {here} holds {_what(node)}, not a mapping of "
+                               f"keys or a list")
+        if i == len(key_path) - 1:
+            node[part] = value
+        else:
+            if isinstance(node, dict) and node.get(part) is None:
+                node[part] = [] if isinstance(key_path[i + 1], int) else {}
+                created.append(key_path[: i + 1])
             node = node[part]
-            continue
-        if part not in node or node[part] is None:
-            node[part] = [] if isinstance(nxt, int) else {}
-        node = node[part]
-    last = key_path[-1]
-    if isinstance(node, list):
-        if not isinstance(last, int) or not 0 <= last < len(node):
-            raise FemFracError(f"--set {text}: no item {last} in {format_key(key_path[:-1])}")
-    node[last] = value
+    return created
 
 
-def plain_data(node):
-    """ruamel's round-trip containers and scalar subclasses -> plain Python objects."""
-    if isinstance(node, dict):
-        return {str(k): plain_data(v) for k, v in node.items()}
-    if isinstance(node, list):
-        return [plain_data(v) for v in node]
-    if isinstance(node, bool) or node is None:
-        return node
-    for t in (int, float, str):
-        if isinstance(node, t):
-            return t(node)
-    return node
+def _what(node) -> str:
+    if isinstance(node, bool):
+        return f"{str(node).lower()}"
+    if isinstance(node, (int, float)):
+        return f"a number ({node})"
+    if isinstance(node, str):
+        return f"a string ({node[:40]!r})"
+    return f"a value of type {type(node).__name__}"
 
 
 def load_case(path: str | Path, overrides: typing.Sequence[str] = ()) -> tuple[Case, Source]:
-    """Parse, override and validate a case file. Raises ``CaseErrors`` / ``FemFracError``."""
+    """Parse, override and validate a case file. Raises ``CaseErrors`` / ``FemFracError``
+    (and a located ``CaseError`` for a value no case holds: ``Source`` places it)."""
     path = Path(path)
     data = read_yaml(path)
     source = Source(path=path, data=data)
     for text in overrides:
-        key_path, value = parse_override(text)
-        apply_override(data, key_path, value, text)
+        try:
+            key_path, value = parse_override(text)
+            created = apply_override(data, key_path, value, text)
+        except FemFracError as exc:
+            raise FemFracError(f"{path}: {exc}") from None
         source.overrides[key_path] = text
-    plain = plain_data(data)
+        source.created.update({p: text for p in created})
+    try:
+        plain = plain_data(data)
+    except CaseError as exc:
+        raise CaseErrors([exc], source) from None
     try:
         case = Case.model_validate(plain)
     except ValidationError as exc:
-        raise CaseErrors([case_error(e, plain) for e in exc.errors()], source) from None
+        errors = _without_misspelt_missing(exc.errors(), plain)
+        raise CaseErrors([case_error(e, plain) for e in errors], source) from None
     return case, source
 
 
@@ -198,10 +220,33 @@ def _strip_tags(loc: tuple, data) -> tuple:
     return tuple(out)
 
 
+def _without_misspelt_missing(errors: list[dict], data) -> list[dict]:
+    """A misspelt key is one error, at the key: drop the "missing" error of the key it
+    resembles, next to it (``mehs:`` is not also ``mesh: required key is missing``)."""
+    extras: dict[tuple, list[str]] = {}
+    for e in errors:
+        if e["type"] == "extra_forbidden":
+            loc = _strip_tags(tuple(e["loc"]), data)
+            extras.setdefault(loc[:-1], []).append(str(loc[-1]))
+    out = []
+    for e in errors:
+        loc = _strip_tags(tuple(e["loc"]), data)
+        if (e["type"] == "missing" and loc and isinstance(loc[-1], str)
+                and difflib.get_close_matches(loc[-1], extras.get(loc[:-1], []), n=1,
+                                              cutoff=0.6)):
+            continue
+        out.append(e)
+    return out
+
+
+_BOUNDS = {"greater_than": ">", "greater_than_equal": ">=", "less_than": "<",
+           "less_than_equal": "<="}
+
+
 def case_error(err: dict, data) -> CaseError:
     """One pydantic error (of validating ``data``) as a located one-line message."""
     loc = _strip_tags(tuple(err["loc"]), data)
-    kind, ctx = err["type"], err.get("ctx", {})
+    kind, ctx, got = err["type"], err.get("ctx", {}), _show(err.get("input"))
     if kind == "missing" and loc and isinstance(loc[-1], int):
         return CaseError(loc[:-1], "must be a list of 3 numbers")
     if kind == "extra_forbidden":
@@ -209,35 +254,70 @@ def case_error(err: dict, data) -> CaseError:
         return CaseError(loc, "unknown key" + _did_you_mean(str(loc[-1]), names))
     if kind == "missing":
         return CaseError(loc, "required key is missing")
-    if kind in ("greater_than", "greater_than_equal", "less_than", "less_than_equal"):
-        op = {"greater_than": ">", "greater_than_equal": ">=", "less_than": "<"}.get(kind, "<=")
+    if kind in _BOUNDS:
         bound = next(iter(ctx.values()))
-        return CaseError(loc, f"must be {op} {bound:g}, got {_show(err['input'])}")
+        return CaseError(loc, f"must be {_BOUNDS[kind]} {_show(bound)}, got {got}")
     if kind == "union_tag_invalid":
         expected = [t.strip(" '") for t in str(ctx.get("expected_tags", "")).split(",")]
         tag = ctx.get("tag")
         return CaseError(
-            loc, f"unknown type {tag!r}" + _did_you_mean(str(tag), expected, always=True)
+            loc, f"unknown type {_show(tag)}" + _did_you_mean(str(tag), expected, always=True)
         )
     if kind == "union_tag_not_found":
-        return CaseError(loc, "missing 'type' key")
-    if kind == "literal_error":
-        return CaseError(loc, f"must be one of {ctx.get('expected')}, got {err['input']!r}")
-    if kind in ("float_parsing", "float_type", "int_parsing", "int_type"):
-        return CaseError(loc, f"must be a number, got {err['input']!r}")
-    if kind in ("tuple_type", "list_type"):
-        return CaseError(loc, f"must be a list, got {err['input']!r}")
-    if kind in ("too_short", "too_long"):
-        return CaseError(loc, f"must have {_expected_length(ctx)} items, got {err['input']!r}")
-    if kind == "model_type" or kind == "dict_type":
-        return CaseError(loc, f"must be a mapping of keys, got {err['input']!r}")
+        return CaseError(loc, _missing_type(data, loc))
+    messages = {
+        "literal_error": f"must be one of {ctx.get('expected')}, got {got}",
+        "finite_number": f"must be a finite number, got {got}",
+        "bool_type": f"must be true or false, got {got}",
+        "string_type": f"must be text, got {got}",
+        "tuple_type": f"must be a list, got {got}",
+        "list_type": f"must be a list, got {got}",
+        "too_short": f"must have {_expected_length(ctx)} items, got {got}",
+        "too_long": f"must have {_expected_length(ctx)} items, got {got}",
+        "model_type": f"must be a mapping of keys, got {got}",
+        "model_attributes_type": f"must be a mapping of keys, got {got}",
+        "dict_type": f"must be a mapping of keys, got {got}",
+        "int_type": f"must be a whole number, got {got}",
+        "int_from_float": f"must be a whole number, got {got}",
+    }
+    if kind in messages:
+        return CaseError(loc, messages[kind])
+    if kind in ("float_parsing", "float_type", "int_parsing"):
+        return CaseError(loc, f"must be a number, got {got}")
     if kind == "value_error":
         return CaseError(loc, str(ctx.get("error", err["msg"])))
     return CaseError(loc, err["msg"][0].lower() + err["msg"][1:])
 
 
 def _show(value) -> str:
-    return f"{value:g}" if isinstance(value, float) else repr(value)
+    """A value for a one-line message: YAML spelling, long ones cut."""
+    if isinstance(value, bool) or value is None:
+        return {True: "true", False: "false", None: "null"}[value]
+    if isinstance(value, float):
+        return f"{value:g}"
+    if isinstance(value, int):
+        if abs(value) < 10**20:
+            return str(value)
+        return f"an integer of {value.bit_length() * 0.30103:.0f} digits"
+    text = repr(value)
+    return text if len(text) <= 60 else text[:57] + "..."
+
+
+def _missing_type(data, loc: tuple) -> str:
+    """What to write as ``type:`` where a section says none."""
+    node = data
+    for part in loc:
+        node = node.get(part) if isinstance(node, dict) else (
+            node[part] if isinstance(node, list) and isinstance(part, int)
+            and 0 <= part < len(node) else None)
+    if loc == ("analysis",) and isinstance(node, dict) and {"t_end", "dt", "steps"} & set(node):
+        return ("missing 'type' key: t_end, dt and steps are for 'type: quasi_static' (load "
+                "steps) or 'type: dynamic' (with inertia); without a type the analysis is one "
+                "static step")
+    tags = [t for m in _members(_annotation_at(data, loc)[0]) if isinstance(m, type)
+            and issubclass(m, BaseModel) and "type" in m.model_fields
+            for t in typing.get_args(m.model_fields["type"].annotation)]
+    return "missing 'type' key" + (f" (one of: {', '.join(tags)})" if tags else "")
 
 
 def _expected_length(ctx: dict) -> str:
@@ -253,21 +333,37 @@ def _did_you_mean(word: str, names: list[str], always: bool = False) -> str:
     return f" (allowed: {', '.join(names)})" if names else ""
 
 
-def _field_names_at(data, loc: tuple) -> list[str]:
-    """Field names of the model that validates the mapping at ``loc`` (union tags skipped)."""
+def _annotation_at(data, loc: tuple) -> tuple[object, object]:
+    """The annotation that validates the value at ``loc`` (union tags skipped), and the
+    value."""
     annotation: object = Case
     node = data
     for part in loc:
         model = _model_of(annotation, node)
         if isinstance(part, int):
             annotation = _list_item(annotation)
-            node = node[part] if isinstance(node, list) and part < len(node) else None
+            node = node[part] if isinstance(node, list) and 0 <= part < len(node) else None
         elif model is not None and part in model.model_fields:
             annotation = model.model_fields[part].annotation
             node = node.get(part) if isinstance(node, dict) else None
+        elif model is None and _dict_value(annotation) is not None:
+            annotation = _dict_value(annotation)
+            node = node.get(part) if isinstance(node, dict) else None
         # else: a union tag in the loc, which names the member _model_of picks anyway
-    model = _model_of(annotation, node)
+    return annotation, node
+
+
+def _field_names_at(data, loc: tuple) -> list[str]:
+    """Field names of the model that validates the mapping at ``loc`` (union tags skipped)."""
+    model = _model_of(*_annotation_at(data, loc))
     return list(model.model_fields) if model is not None else []
+
+
+def _dict_value(annotation):
+    for member in _members(annotation):
+        if typing.get_origin(member) is dict:
+            return typing.get_args(member)[1]
+    return None
 
 
 def _members(annotation) -> list:

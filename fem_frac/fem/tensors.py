@@ -9,7 +9,11 @@ Two layouts, both in VTK's component order XX, YY, ZZ, XY, YZ, XZ:
 
 from __future__ import annotations
 
+import contextlib
+
 import numpy as np
+
+from ..errors import SolverError
 
 SQRT2 = np.sqrt(2.0)
 # (row, column) of each 6-vector component in the 3x3 tensor, VTK order.
@@ -64,7 +68,8 @@ def principal(m: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Eigenvalues ``(..., 3)``, ascending, and unit eigenvectors ``(..., 3, 3)`` (column
     ``k`` belongs to value ``k``) of Mandel tensors ``(6, ...)``: batched
     :func:`numpy.linalg.eigh`. Signs of the vectors are whatever LAPACK returns."""
-    return np.linalg.eigh(matrices_from_mandel(m))
+    with _converging():
+        return np.linalg.eigh(matrices_from_mandel(m))
 
 
 def principal_values(m: np.ndarray) -> np.ndarray:
@@ -72,4 +77,16 @@ def principal_values(m: np.ndarray) -> np.ndarray:
 
     :func:`numpy.linalg.eigvalsh` of the matrices of :func:`principal`: cheaper than
     ``eigh`` when no vectors are wanted (the two may differ by a few ulps)."""
-    return np.moveaxis(np.linalg.eigvalsh(matrices_from_mandel(m)), -1, 0)
+    with _converging():
+        return np.moveaxis(np.linalg.eigvalsh(matrices_from_mandel(m)), -1, 0)
+
+
+@contextlib.contextmanager
+def _converging():
+    """LAPACK's failure to converge (on non-finite or absurdly large stresses) as a
+    :class:`SolverError`: a numerical failure, not a bug."""
+    try:
+        yield
+    except np.linalg.LinAlgError as exc:
+        raise SolverError(f"principal stresses: {exc} (stresses not finite or too large: "
+                          "an extreme load?)") from None

@@ -50,11 +50,17 @@ def read_mesh_file(path: str | Path, order_hint: int | None = None) -> Mesh:
     raw = _read_meshio(path)
     blocks = list(raw.cells)
     tet_blocks = _tet_blocks(path, raw, blocks)
-    xyz = np.asarray(raw.points, dtype=np.float64)
-    if xyz.shape[1] != 3:
-        raise MeshError(f"{path}: points are {xyz.shape[1]}-dimensional, expected 3")
+    try:
+        xyz = np.asarray(raw.points, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise MeshError(f"{path}: point coordinates are not numbers") from None
+    if xyz.ndim != 2 or xyz.shape[1] != 3:
+        dims = xyz.shape[1] if xyz.ndim == 2 else "not"
+        raise MeshError(f"{path}: points are {dims}-dimensional, expected 3")
+    _check_indices(path, blocks, len(xyz))
     corner_nodes = np.concatenate([blocks[i].data[:, :4] for i in tet_blocks]).astype(np.int64)
     used, new_id = compact_corners(corner_nodes, len(xyz))
+    _check_finite(path, xyz, used)
     points = xyz[used]
 
     edges = edge_points = None
@@ -157,6 +163,38 @@ def _read_meshio(path: Path):
         text = str(exc) if not isinstance(exc, SystemExit) else chatter.getvalue()
         reason = " ".join(text.replace("Error:", " ").split()) or type(exc).__name__
         raise MeshError(f"{path}: cannot read mesh file: {reason}") from None
+
+
+def _check_indices(path: Path, blocks, n_points: int) -> None:
+    """Every node index of the tet and triangle blocks names a point of the file."""
+    for b in blocks:
+        if b.type not in _TET_TYPES + _TRI_TYPES:
+            continue
+        data = np.asarray(b.data)
+        if not np.issubdtype(data.dtype, np.integer):
+            raise MeshError(f"{path}: {b.type} node indices are not integers")
+        width = {"tetra": 4, "tetra10": 10, "triangle": 3, "triangle6": 6}[b.type]
+        if data.ndim != 2 or data.shape[1] != width:
+            raise MeshError(f"{path}: {b.type} cells have {data.shape[1:] or 'no'} node "
+                            f"indices, expected {width}")
+        bad = (data < 0) | (data >= n_points)
+        if np.any(bad):
+            row = int(np.flatnonzero(bad.any(axis=1))[0])
+            raise MeshError(f"{path}: {np.count_nonzero(bad.any(axis=1))} {b.type} cells name "
+                            f"nodes outside 0..{n_points - 1} (first: cell {row} of its block, "
+                            f"node {int(data[bad][0])})")
+
+
+def _check_finite(path: Path, xyz: np.ndarray, used: np.ndarray) -> None:
+    """The tet corners have finite coordinates (NaN or Inf breaks every later step)."""
+    bad = ~np.isfinite(xyz[used]).all(axis=1)
+    if np.any(bad):
+        raise MeshError(f"{path}: {np.count_nonzero(bad)} points have non-finite coordinates "
+                        f"(first: point {int(used[np.flatnonzero(bad)[0]])})")
+    scale = float(np.abs(xyz[used]).max(initial=0.0))
+    if scale > 1e100:
+        raise MeshError(f"{path}: coordinates up to {scale:g}: too large to compute with "
+                        "(volumes overflow); scale the mesh")
 
 
 def _file_format(path: Path) -> str | None:

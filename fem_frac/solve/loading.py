@@ -18,6 +18,10 @@ from ..errors import CaseError
 
 Curve = Callable[[float], float]
 
+# The bounds of a time grid arithmetic can step through (see time_grid).
+MAX_STEPS = float(2**31 - 1)
+MIN_DT, MAX_DT = 1e-150, 1e150
+
 
 @dataclass(frozen=True)
 class TimeGrid:
@@ -33,7 +37,11 @@ class TimeGrid:
 
 def time_grid(analysis) -> TimeGrid:
     """The steps an analysis takes. Static: one step to t = 1. Given ``t_end`` and ``dt``,
-    the step is shortened (never lengthened) to divide ``t_end`` exactly."""
+    the step is shortened (never lengthened) to divide ``t_end`` exactly.
+
+    Raises a :class:`CaseError` for a grid no arithmetic can step through: more than
+    :data:`MAX_STEPS` steps, or a step outside [:data:`MIN_DT`, :data:`MAX_DT`] (its square,
+    which the integrators divide by, would underflow to zero or overflow)."""
     if isinstance(analysis, schema.StaticAnalysis):
         return TimeGrid(1.0, 1.0, 1)
     t_end, dt, steps = analysis.t_end, analysis.dt, analysis.steps
@@ -42,10 +50,21 @@ def time_grid(analysis) -> TimeGrid:
     ):
         t_end = 1.0
     if steps is None:
-        steps = max(1, int(np.ceil(t_end / dt * (1.0 - 1e-12))))
+        ratio = t_end / dt * (1.0 - 1e-12)
+        if not ratio <= MAX_STEPS:
+            raise CaseError(("analysis", "dt"), f"t_end / dt = {t_end:g} / {dt:g} is more "
+                            f"than {MAX_STEPS:g} steps")
+        steps = max(1, int(np.ceil(ratio)))
     if t_end is None:
         t_end = dt * steps
-    return TimeGrid(float(t_end), float(t_end) / steps, int(steps))
+    grid = TimeGrid(float(t_end), float(t_end) / steps, int(steps))
+    if not MIN_DT <= grid.dt <= MAX_DT:
+        key = "dt" if analysis.dt is not None else ("t_end" if analysis.t_end is not None
+                                                     else "steps")
+        raise CaseError(("analysis", key), f"a time step of {grid.dt:g} (t_end {grid.t_end:g}"
+                        f" in {grid.steps} steps) is outside [{MIN_DT:g}, {MAX_DT:g}]: its "
+                        "square under- or overflows; change the unit of time")
+    return grid
 
 
 def default_curve(analysis) -> str:
@@ -60,6 +79,8 @@ def make_curve(curve: schema.RampCurve | schema.ConstantCurve | schema.TableCurv
         return lambda t: value
     if isinstance(curve, schema.RampCurve):
         t0, t1, value = curve.t_start, curve.t_end or t_end, curve.value
+        if not t1 > t0:  # starts at or after its end: a step at t0
+            return lambda t: value * float(t >= t0)
         return lambda t: value * float(np.clip((t - t0) / (t1 - t0), 0.0, 1.0))
     times = np.array([p[0] for p in curve.points])
     factors = np.array([p[1] for p in curve.points])
@@ -90,5 +111,15 @@ def resolve_curves(
             raise CaseError(key, f"unknown load curve {name!r}; known: {known}")
         if name not in used:
             used.append(name)
+            _check_ramp(name, table[name], t_end)
         index[i] = used.index(name)
     return used, [make_curve(table[n], t_end) for n in used], index
+
+
+def _check_ramp(name: str, curve, t_end: float) -> None:
+    """A ramp that would start at or after the end of the analysis (its own default end)
+    never acts: a located error at its ``t_start``."""
+    if isinstance(curve, schema.RampCurve) and curve.t_end is None and curve.t_start >= t_end:
+        raise CaseError(("load_curves", name, "t_start"),
+                        f"the ramp starts at {curve.t_start:g}, at or after the end of the "
+                        f"analysis ({t_end:g}): it would never act; give an earlier t_start")

@@ -34,7 +34,7 @@ class Perturbation(Section):
     ``angle`` (degrees) around the principal direction; the same seed gives the same run."""
 
     angle: Annotated[float, Field(gt=0.0, lt=90.0)]
-    seed: int = 0
+    seed: Annotated[int, Field(ge=0, le=2**64 - 1)] = 0
 
 
 class Protect(Section):
@@ -81,8 +81,11 @@ class Ground(Section):
 
     @model_validator(mode="after")
     def _normal(self):
-        if sum(c * c for c in self.normal) == 0.0:
+        square = sum(c * c for c in self.normal)
+        if square == 0.0:
             raise ValueError("normal must not be zero")
+        if not 1e-200 < square < 1e200:
+            raise ValueError("normal must be of moderate length (a unit vector is best)")
         return self
 
 

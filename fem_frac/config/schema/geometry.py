@@ -6,7 +6,7 @@ from typing import Annotated, Literal
 
 from pydantic import Field, model_validator
 
-from .base import PositiveFloat, PositiveVector3, Section, Vector3
+from .base import NotBool, PositiveFloat, PositiveVector3, Section, Vector3
 
 
 class BoxGeometry(Section):
@@ -75,7 +75,7 @@ class MeshSection(Section):
     geometry: Geometry | None = None
     file: str | None = None
     element_size: PositiveFloat | None = None
-    order: Literal[1, 2] = 1
+    order: Annotated[Literal[1, 2], NotBool] = 1
     formulation: Literal["standard", "averaged"] = Field(
         default="standard",
         description="'averaged': linear tets with the volumetric strain averaged over the "

@@ -6,7 +6,7 @@ from typing import Annotated, Literal
 
 from pydantic import Field, model_validator
 
-from .base import BoxSelection, NonNegativeFloat, PositiveFloat, Section, Vector3
+from .base import BoxSelection, NonNegativeFloat, Pair, PositiveFloat, Section, Vector3
 
 
 class RampCurve(Section):
@@ -37,7 +37,7 @@ class TableCurve(Section):
     the first and last factor outside them."""
 
     type: Literal["table"]
-    points: list[tuple[float, float]] = Field(min_length=1)
+    points: list[Pair] = Field(min_length=1)
 
     @model_validator(mode="after")
     def _increasing(self):
