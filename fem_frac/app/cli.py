@@ -60,7 +60,13 @@ def _case_arguments(sp: argparse.ArgumentParser) -> None:
         default=[],
         metavar="KEY.PATH=VALUE",
         help="override a case value, e.g. --set material.youngs_modulus=7e10 or "
-        "--set boundary_conditions[1].pressure=2e6 (repeatable; VALUE is YAML)",
+        "--set boundary_conditions[1].pressure=2e6 (repeatable; VALUE is YAML; missing "
+        "sections are created)",
+    )
+    sp.add_argument(
+        "--allow-large", action="store_true",
+        help="lift the bounds on the work a case may imply (tets, dofs, steps, output "
+        "frames, smoothing neighbourhood; see docs/input.md), which refuse it before meshing",
     )
 
 
@@ -153,6 +159,7 @@ def main(argv: list[str] | None = None) -> int:
     try:
         case, source = load_case(args.case, args.overrides)
         _warn_units(case, source)
+        _refuse_before_meshing(case, args)
         if args.command == "check":
             from .report import check_report
 
@@ -161,18 +168,16 @@ def main(argv: list[str] | None = None) -> int:
             _run(case, source, args)
         return 0
     except CaseErrors as exc:
-        for line in exc.lines():
-            print(f"error: {line}", file=sys.stderr)
+        _error(exc.line())
         return 2
     except CaseError as exc:
-        where = source.format(exc) if source is not None else exc.message
-        print(f"error: {where}", file=sys.stderr)
+        _error(source.format(exc) if source is not None else f"{args.case}: {exc.message}")
         return 2
     except SolverError as exc:
-        print(f"error: {args.case}: {exc}", file=sys.stderr)
+        _error(f"{args.case}: {_stage_of(exc)}{exc}")
         return 3
     except FemFracError as exc:
-        print(f"error: {exc}", file=sys.stderr)
+        _error(str(exc))
         return 2
     except Interrupted as exc:
         where = f" in {exc.directory}" if exc.directory is not None else ""
@@ -182,6 +187,53 @@ def main(argv: list[str] | None = None) -> int:
     except KeyboardInterrupt:
         print("interrupted; output written so far is kept", file=sys.stderr)
         return 130
+    except Exception as exc:  # the last resort: one line, never a traceback
+        return _unexpected(exc, args)
+
+
+def _error(text: str) -> None:
+    """``error: text`` on one line of stderr, whatever the text holds (newlines, bytes
+    that were not UTF-8 in the arguments)."""
+    text = " ".join(str(text).split()).encode("utf-8", "backslashreplace").decode("utf-8")
+    print(f"error: {text}", file=sys.stderr)
+
+
+def _refuse_before_meshing(case, args) -> None:
+    """The checks that need no mesh: the work the case implies (unless --allow-large) and
+    the fit of its reference."""
+    from .budget import BOUNDS, check_budget
+    from .reference import check_reference
+
+    check_budget(case, args.case.parent, None if args.allow_large else BOUNDS)
+    check_reference(case)
+
+
+def _stage_of(exc: BaseException) -> str:
+    """``step n, stage s: `` of the step loop's frame ``exc`` passed through, unless the
+    message says so already (a numerical failure deep in shared code knows neither)."""
+    if str(exc).startswith("step "):
+        return ""
+    tb, found = exc.__traceback__, ""
+    while tb is not None:
+        frame = tb.tb_frame
+        if frame.f_code.co_name == "march" and "stage" in frame.f_locals:
+            name = getattr(frame.f_locals["stage"], "name", None)
+            found = f"step {frame.f_locals.get('n', '?')}, stage {name}: " if name else found
+        tb = tb.tb_next
+    return found
+
+
+def _unexpected(exc: Exception, args) -> int:
+    """An exception no check foresaw: a numerical one (overflow, LAPACK) is exit 3 like a
+    SolverError; anything else exit 1, reported as an internal error in one line."""
+    import numpy as np
+
+    text = f"{type(exc).__name__}: {exc}"
+    if isinstance(exc, (ArithmeticError, np.linalg.LinAlgError)):
+        _error(f"{args.case}: {_stage_of(exc)}numerical failure: {text}")
+        return 3
+    _error(f"{args.case}: internal error ({text}); please report it with the case file")
+    return 1
 
 
 def _warn_units(case, source) -> None:
