@@ -403,6 +403,11 @@ def test_included_and_merged_scripts_are_read_relative_to_the_including_file(tmp
         ("deep.geo", 2, "Save"), ("script.txt", 1, "Exit")]
 
 
+def test_a_device_a_missing_file_and_a_cycle_are_not_read_as_scripts(tmp_path):
+    text = 'Include "/dev/zero";\nMerge "/dev/zero";\nInclude "nowhere.geo";\nInclude "t.geo";\n'
+    assert _uses(tmp_path, text + 'Save "x";\n') == [("t.geo", 5, "Save")]
+
+
 def test_a_refused_geo_file_is_not_read_by_gmsh_unless_allowed(tmp_path):
     made = tmp_path / "made.txt"
     geo = tmp_path / "w.geo"

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import os
 import re
+import stat
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -263,14 +264,16 @@ def geo_commands(path: str | Path) -> list[GeoCommand]:
 
 
 def _scan_geo(path: Path, found: list[GeoCommand], seen: set) -> None:
+    if not _regular_file(path):
+        return  # gmsh reports a file it cannot read (and a device or pipe is no script)
+    key = os.path.realpath(path)
+    if key in seen:
+        return
+    seen.add(key)
     try:
-        key = os.path.realpath(path)
-        if key in seen:
-            return
-        seen.add(key)
         text = path.read_bytes().decode("latin-1")
     except OSError:
-        return  # gmsh reports a file it cannot read
+        return
     tokens = _geo_tokens(text)
     for i, (kind, word, line) in enumerate(tokens):
         if kind != "name":
@@ -343,6 +346,13 @@ def _writing_option(tokens, i: int) -> bool:
     return category == "Solver" or option.rstrip("0123456789").endswith(GEO_OPTION_SUFFIXES)
 
 
+def _regular_file(path: Path) -> bool:
+    try:
+        return stat.S_ISREG(os.stat(path).st_mode)
+    except (OSError, ValueError):
+        return False
+
+
 def _relative_to(including: Path, name: str) -> Path:
     """gmsh's FixRelativePath: a relative name is taken from the including file's
     directory."""
@@ -359,7 +369,7 @@ def _read_as_script(target: Path, path: Path, line: int, word: str,
         found.append(GeoCommand(path, line, f"{word} {target.name}",
                                 GEO_PROGRAM_EXTENSIONS[ext]))
         return False
-    if ext in GEO_DATA_EXTENSIONS:
+    if ext in GEO_DATA_EXTENSIONS or not _regular_file(target):
         return False
     try:
         with open(target, "rb") as f:
