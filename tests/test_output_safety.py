@@ -103,6 +103,14 @@ def test_a_name_given_with_set_is_refused_at_the_override(tmp_path, capsys):
     assert _tree(tmp_path) == before
 
 
+def test_a_nul_in_the_output_directory_is_a_located_error(tmp_path, capsys):
+    case = _case(tmp_path, CASE.replace("output: {name: x}", 'output: {directory: "o\\0x"}'))
+    before = _tree(tmp_path)
+    code, err = _run(capsys, case)
+    _one_line_error(code, err, f"{case}:8:", "output.directory", "NUL")
+    assert _tree(tmp_path) == before
+
+
 # --- the manifest and --overwrite ------------------------------------------------------------
 
 

@@ -191,6 +191,8 @@ def check_location(directory: Path) -> None:
     """Raise :class:`FemFracError` unless ``directory`` is a writable directory or its
     nearest existing parent is one (it can be made); creates nothing."""
     directory = Path(directory)
+    if "\0" in str(directory):
+        raise FemFracError(f"{str(directory)!r}: a path cannot contain a NUL character")
     if os.path.lexists(directory) and not os.path.isdir(directory):
         raise FemFracError(f"{directory}: exists and is not a directory")
     for parent in [directory, *directory.parents]:

@@ -29,6 +29,14 @@ class Output(Section):
     #: Longest ``name`` (bytes, UTF-8): the files add up to 17 characters to it.
     NAME_MAX_BYTES: ClassVar[int] = 128
 
+    @field_validator("directory")
+    @classmethod
+    def _a_path(cls, v: str | None) -> str | None:
+        """A path the system can take (any path: the run writes only inside it)."""
+        if v is not None and "\0" in v:
+            raise ValueError("must not contain a NUL character")
+        return v
+
     @field_validator("name")
     @classmethod
     def _plain_name(cls, v: str | None) -> str | None:
