@@ -13,9 +13,10 @@ from ..config.schema import Case, DynamicAnalysis
 from ..fem.loads import facet_basis
 from ..mesh.build import build_mesh, mesh_file_path
 from ..mesh.mesh import min_dihedral_angles
-from ..mesh.selection import boundary_names, named_facets
+from ..mesh.selection import boundary_names, box_face_area, box_facets, named_facets
 from ..solve.discretization import check_model, model_on
 from ..solve.loading import time_grid
+from ..solve.problem import outer_facets
 from ..timing import StageTimer
 from .driver import check_stages, recipe_of
 from .plan import format_plan, make_plan
@@ -68,8 +69,11 @@ def check_report(case: Case, source: Source) -> str:
                 include={"youngs_modulus", "poissons_ratio", "density"}).items()
                 if v is not None)
             lines.append(f"  [{i}] {where}: {count:,} tets; {values}")
+    lines += _material_lines(case, space, materials)
     lines.append("supports and loads")
     lines += [f"  {d}" for d in problem.descriptions] or ["  (none)"]
+    lines += _selection_lines(case, mesh, space)
+    lines += _load_lines(case, space, materials, problem)
     if case.fracture is not None:
         lines += _fracture_lines(case, mesh)
     if isinstance(case.analysis, DynamicAnalysis):
@@ -79,8 +83,106 @@ def check_report(case: Case, source: Source) -> str:
     return "\n".join(lines)
 
 
+def _material_lines(case: Case, space, materials) -> list[str]:
+    """The material's constants (and plasticity's), and the mass they give the mesh."""
+    m = case.material
+    values = f"E {m.youngs_modulus:.6g}, nu {m.poissons_ratio:g}"
+    if m.density is not None:
+        values += f", density {m.density:.6g}"
+    lines = ["material", f"  {values}"]
+    if materials.has_density():
+        rho = np.asarray(materials.density, dtype=float)
+        mass = float(np.sum(space.basis.dx.sum(axis=1) * rho)) if rho.ndim else float(
+            rho * space.basis.dx.sum())
+        lines.append(f"  mass {mass:.6g}" + (" (with regions)" if case.regions else ""))
+    p = case.plasticity
+    if p is not None:
+        lines.append(f"  plasticity {p.model}: yield stress {p.yield_stress:.6g}, "
+                     f"hardening {p.hardening:.6g}, kinematic hardening "
+                     f"{p.kinematic_hardening:.6g}")
+    return lines
+
+
+def _selection_lines(case: Case, mesh, space) -> list[str]:
+    """The faces each box of a support or load selects (by centroid) and their area; for
+    a flat box, the area of the box's own face beside it."""
+    boxes = [(i, bc) for i, bc in enumerate(case.boundary_conditions) if bc.box is not None]
+    if not boxes:
+        return []
+    exterior = outer_facets(mesh)
+    lines = ["box selections (faces whose centroid lies in the box)"]
+    for i, bc in boxes:
+        lo, hi = bc.box.min, bc.box.max
+        triples = box_facets(mesh, lo, hi, exterior)
+        area = _area(space, triples) if len(triples) else 0.0
+        line = (f"  boundary_conditions[{i}] {bc.type}: {len(triples):,} faces   "
+                f"area {area:.6g}")
+        own = box_face_area(mesh, lo, hi)
+        if own:
+            line += f"; the box's face {own:.6g} ({100.0 * area / own:.0f} % of it)"
+        lines.append(line)
+    return lines
+
+
+def _load_lines(case: Case, space, materials, problem) -> list[str]:
+    """The total force of every surface load at the peak of its curve, and gravity's."""
+    from ..config.schema import Pressure, Traction
+    from ..fem.loads import surface_load
+    from ..solve.loading import default_curve
+
+    grid = time_grid(case.analysis)
+    exterior = outer_facets(space.mesh)
+    lines = []
+    for i, bc in enumerate(case.boundary_conditions):
+        if not isinstance(bc, Traction | Pressure):
+            continue
+        triples = (box_facets(space.mesh, bc.box.min, bc.box.max, exterior)
+                   if bc.box is not None else named_facets(space.mesh, bc.boundary, exterior))
+        facets = space.facet_indices(triples)
+        value = ({"traction": bc.traction} if isinstance(bc, Traction)
+                 else {"pressure": bc.pressure})
+        total = surface_load(space, facets, **value).reshape(-1, 3).sum(axis=0)
+        name = bc.curve or default_curve(case.analysis)
+        factor, when = _peak(case, problem, name, grid)
+        label = bc.boundary if bc.boundary is not None else f"boundary_conditions[{i}]"
+        lines.append(f"  {bc.type} on {label}: total force {_vector(factor * total)} at the "
+                     f"peak of curve {name} (factor {factor:g} at t = {when:.6g})")
+    if case.body_force is not None and materials.has_density():
+        rho = np.asarray(materials.density, dtype=float)
+        cells = space.basis.dx.sum(axis=1)
+        mass = float(np.sum(cells * rho)) if rho.ndim else float(rho * cells.sum())
+        g = np.asarray(case.body_force.gravity, dtype=float)
+        name = case.body_force.curve or default_curve(case.analysis)
+        factor, when = _peak(case, problem, name, grid)
+        lines.append(f"  gravity {_vector(g)}: weight {_vector(factor * mass * g)} at the "
+                     f"peak of curve {name} (factor {factor:g} at t = {when:.6g})")
+    return ["load magnitudes"] + lines if lines else []
+
+
+def _peak(case: Case, problem, name: str, grid) -> tuple[float, float]:
+    """The factor of curve ``name`` largest in size over the run, and when: at the steps'
+    times and a table's own points within the run."""
+    curve = problem.curves[problem.curve_names.index(name)]
+    times = [grid.time(n) for n in range(grid.steps + 1)]
+    table = case.load_curves.get(name)
+    if table is not None and table.type == "table":
+        times += [t for t, _ in table.points if 0.0 <= t <= grid.t_end]
+    values = np.array([float(curve(t)) for t in times])
+    k = int(np.argmax(np.abs(values)))
+    return float(values[k]), float(times[k])
+
+
+def _vector(v) -> str:
+    """``(x, y, z)`` to 4 digits, round-off below 1e-9 of the largest component as 0."""
+    v = np.asarray(v, dtype=float)
+    v = np.where(np.abs(v) < 1e-9 * np.abs(v).max(initial=0.0), 0.0, v)
+    return "(" + ", ".join(f"{x:.4g}" for x in v) + ")"
+
+
 def _time_step_lines(recipe, space, materials, problem) -> list[str]:
-    """The stable step of central difference (and how the case's dt compares)."""
+    """Explicit: the stable step of central difference and how the case's dt compares.
+    Implicit: its stability, then that step as a note for comparison only (it does not limit
+    the run)."""
     from ..fem.mass import lumped_mass
     from ..plasticity.law import material_law
     from ..solve.constrained import Constrained
@@ -93,15 +195,29 @@ def _time_step_lines(recipe, space, materials, problem) -> list[str]:
     limit = stable_limit(space, ops.stiffness, lumped_mass(space, materials.density),
                          Constrained(problem, "auto").free, materials, analysis.rayleigh)
     dt = recipe.dt
-    verdict = ""
-    if analysis.integrator == "central_difference":
-        substeps = explicit_substeps(limit, dt, analysis.substeps)  # refuses as run does
-        verdict = (f"; dt {dt:.4g} is {dt / limit.dt:.3g} of it" if substeps == 1
-                   else f"; dt {dt:.4g} runs as {substeps} substeps")
-    return [
-        f"time step   stable step of central difference {limit.dt:.4g} "
-        f"({limit.method}; element bound {limit.element_bound_dt:.4g}){verdict}",
-    ]
+    step = (f"stable step of central difference {limit.dt:.4g} "
+            f"({limit.method}; element bound {limit.element_bound_dt:.4g})")
+    if analysis.integrator != "central_difference":
+        return [f"time step   dt {dt:.4g}: {_implicit_note(analysis)}",
+                f"            note, for comparison only (it does not limit this implicit "
+                f"run): {step}; dt is {dt / limit.dt:.3g} times it"]
+    substeps = explicit_substeps(limit, dt, analysis.substeps)  # refuses as run does
+    verdict = (f"; dt {dt:.4g} is {dt / limit.dt:.3g} of it" if substeps == 1
+               else f"; dt {dt:.4g} runs as {substeps} substeps")
+    return [f"time step   {step}{verdict}"]
+
+
+def _implicit_note(analysis) -> str:
+    """Whether an implicit integrator has a stable-step limit."""
+    if analysis.integrator == "hht":
+        return (f"implicit hht (alpha {analysis.alpha:g}), unconditionally stable: no "
+                "step limit, dt is chosen for accuracy")
+    beta, gamma = analysis.newmark_beta, analysis.newmark_gamma
+    if 2.0 * beta >= gamma:
+        return (f"implicit newmark (beta {beta:g}, gamma {gamma:g}), unconditionally "
+                "stable: no step limit, dt is chosen for accuracy")
+    return (f"implicit newmark (beta {beta:g}, gamma {gamma:g}), only conditionally "
+            "stable (2 beta < gamma): its own step limit is not computed")
 
 
 def resolved_case(case: Case, source: Source, directory: Path, name: str) -> Case:
