@@ -91,10 +91,32 @@ def check_cracks_open(out: Path, name: str, summary: dict, history: dict, first,
     assert spread[count > 1].max() > 1e-6 * np.abs(u).max()
     crack_pvd = out / f"{name}_crack.pvd"
     if crack_pvd.exists():
-        series = sorted(out.glob(f"{name}_crack_*.vtu"))
-        assert len(series) == summary["output"]["steps"]  # written at every output step
-        surface = meshio.read(series[-1])
-        assert len(surface.cells[0].data) == 2 * f["crack_faces"]
+        check_crack_series(out, name, summary)
+
+
+def check_crack_series(out: Path, name: str, summary: dict) -> None:
+    """The crack-face series: written at every output step, every step readable by meshio
+    (a step without a face holds one vertex cell), each crack face once (its two sides
+    paired) with its opening and the time it opened."""
+    f = summary["fracture"]
+    series = sorted(out.glob(f"{name}_crack_*.vtu"))
+    assert len(series) == summary["output"]["steps"]  # written at every output step
+    surfaces = [meshio.read(path) for path in series]
+    assert [c.type for c in surfaces[0].cells] == ["vertex"]  # no crack at t = 0
+    last = surfaces[-1]
+    faces = last.cells_dict["triangle"]
+    assert len(faces) == f["crack_faces"]
+    opening = last.cell_data["opening"][0]
+    assert opening.shape == (len(faces), 3) and np.all(np.isfinite(opening))
+    np.testing.assert_allclose(last.cell_data["opening_norm"][0],
+                               np.linalg.norm(opening, axis=1), rtol=1e-12)
+    assert last.cell_data["opening_norm"][0].max() > 0
+    when = last.cell_data["opened_time"][0]
+    assert when.min() >= f["first_crack_time"] - 1e-12 * summary["analysis"]["t_end"]
+    assert when.max() <= summary["analysis"]["t_end"] * (1 + 1e-12)
+    steps = last.cell_data["opened_step"][0]
+    if np.all(steps >= 0):  # the steps are known where the output stage records them
+        np.testing.assert_allclose(when, steps * summary["analysis"]["dt"], rtol=1e-9)
 
 
 def check_rigid_fragments(case: Path, summary: dict, history: dict, last) -> None:
