@@ -338,14 +338,14 @@ def test_bad_geo_raises_mesh_error(tmp_path, text, message):
 
 
 def _uses(tmp_path, text, name="t.geo"):
-    from fem_frac.mesh.geometry import geo_commands
+    from fem_frac.mesh.gmsh_model import geo_commands
 
     (tmp_path / name).write_text(text)
     return [(c.path.name, c.line, c.command) for c in geo_commands(tmp_path / name)]
 
 
 def test_the_shipped_geo_files_use_no_refused_command():
-    from fem_frac.mesh.geometry import geo_commands
+    from fem_frac.mesh.gmsh_model import geo_commands
 
     for geo in sorted(MESHES.glob("*.geo")):
         assert geo_commands(geo) == [], geo

@@ -9,17 +9,13 @@ listed in each docstring; no subdomains) and meshes it with
 
 from __future__ import annotations
 
-import os
-import re
-import stat
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
 from ..errors import MeshError
-from .gmsh_model import ALGORITHM_3D, gmsh_session, mesh_current_model
+from .gmsh_model import ALGORITHM_3D, check_geo_file, gmsh_session, mesh_current_model
 from .mesh import Mesh
 
 Vector = Sequence[float]
@@ -157,7 +153,8 @@ def from_geo_file(path: str | Path, element_size: float | None = None, order: in
     kept unless it left the default (Delaunay), which is replaced by HXT.
 
     Unless ``allow_commands``, a file that (or whose included files) runs programs or
-    writes files is refused before gmsh reads it (:func:`check_geo_file`).
+    writes files is refused before gmsh reads it
+    (:func:`~fem_frac.mesh.gmsh_model.check_geo_file`).
     """
     import gmsh
 
@@ -178,205 +175,6 @@ def from_geo_file(path: str | Path, element_size: float | None = None, order: in
             )
         except MeshError as exc:
             raise MeshError(f"{path}: {exc}") from None
-
-
-# --- what a .geo file may do ------------------------------------------------------------------
-#
-# gmsh's scripting language (src/parser/Gmsh.l and Gmsh.y of gmsh 4.x) can run programs and
-# write files. These are refused unless the case allows them (mesh.allow_geo_commands);
-# docs/security.md lists them with the reasons.
-
-#: ``Name "string";`` commands (an identifier followed by a string expression).
-GEO_STRING_COMMANDS = {
-    "SystemCall": "runs a shell command",
-    "System": "runs a shell command",
-    "NonBlockingSystemCall": "runs a shell command",
-    "OnelabRun": "runs a program (an ONELAB client)",
-    "CreateDir": "creates a directory",
-    "Save": "writes a file",
-    "Print": "writes a file (an image)",
-}
-#: Keywords refused wherever they stand.
-GEO_KEYWORDS = {
-    "Exit": "ends the whole process (fem_frac with it)",
-    "Plugin": "runs a post-processing plugin (some write files)",
-    "OnelabRun": "runs a program (an ONELAB client)",
-}
-#: Commands that read another file: an included file is parsed as a .geo script.
-GEO_INCLUDES = ("Include", "Merge", "MergeWithBoundingBox")
-#: Extensions gmsh's ``Merge`` reads with a reader of their own (never as a script).
-GEO_DATA_EXTENSIONS = frozenset(
-    e for ext in ("stl brep rle brp xao iges igs step stp sat x_t xmt_txt x_b xmt_bin unv vtk "
-                  "wrl vrml iv mesh off obj diff med mmed rmed bdf nas neu dat p3d pnm pbm pgm "
-                  "ppm bmp jpg jpeg png ply2 ply geom cgns pch").split()
-    for e in (f".{ext}", f".{ext.upper()}"))
-#: ``Merge`` of these runs a program: gmsh uncompresses ``.gz`` with a shell command and
-#: takes ``.py``/``.m``/``.exe`` for a solver to run.
-GEO_PROGRAM_EXTENSIONS = {".gz": "is uncompressed by a shell command",
-                          **dict.fromkeys((".py", ".PY", ".m", ".M", ".exe", ".EXE"),
-                                          "is a program gmsh would run")}
-#: First bytes of the files ``Merge`` reads as a mesh or a post-processing view.
-GEO_DATA_HEADERS = (b"$PTS", b"$NO", b"$PARA", b"$ELM", b"$MeshFormat", b"$Comments",
-                    b"$PostFormat", b"$View")
-#: Options that write a file or name a program (``General.LogFileName`` opens its file at
-#: once; the rest take effect in gmsh's GUI or its ONELAB clients).
-GEO_OPTION_SUFFIXES = ("FileName", "Command", "Executable", "Interpreter", "RemoteLogin",
-                       "TextEditor", "WatchFilePattern")
-
-_GEO_TOKEN = re.compile(
-    r"""(?P<space>[ \t\r\f\v]+)|(?P<newline>\n)|(?P<comment>//[^\n]*|/\*.*?(?:\*/|\Z))
-    |(?P<string>"[^"]*(?:"|\Z)|'[^']*(?:'|\Z))
-    |(?P<number>(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?)
-    |(?P<name>[A-Za-z_][A-Za-z0-9_]*)|(?P<op>>>|.)""",
-    re.S | re.X,
-)
-
-
-@dataclass(frozen=True)
-class GeoCommand:
-    """A use of a refused command: the file, its line, the command and what it does."""
-
-    path: Path
-    line: int
-    command: str
-    why: str
-
-    def __str__(self) -> str:
-        return f"{self.path}:{self.line}: {self.command} {self.why}"
-
-
-def check_geo_file(path: str | Path) -> None:
-    """Raise :class:`MeshError` naming the file, line and command of the first command of
-    ``path`` (or of a file it includes) that runs a program or writes a file."""
-    found = geo_commands(path)
-    if found:
-        raise MeshError(f"{found[0]} (refused: set mesh.allow_geo_commands: true only for a "
-                        "file you trust; see docs/security.md)")
-
-
-def geo_commands(path: str | Path) -> list[GeoCommand]:
-    """Every use in ``path`` and the files it includes (``Include``, ``Merge`` of a script,
-    recursively, relative paths from the including file's directory) of a command that runs
-    a program or writes a file, in reading order."""
-    found: list[GeoCommand] = []
-    _scan_geo(Path(path), found, set())
-    return found
-
-
-def _scan_geo(path: Path, found: list[GeoCommand], seen: set) -> None:
-    if not _regular_file(path):
-        return  # gmsh reports a file it cannot read (and a device or pipe is no script)
-    key = os.path.realpath(path)
-    if key in seen:
-        return
-    seen.add(key)
-    try:
-        text = path.read_bytes().decode("latin-1")
-    except OSError:
-        return
-    tokens = _geo_tokens(text)
-    for i, (kind, word, line) in enumerate(tokens):
-        if kind != "name":
-            continue
-        before = tokens[i - 1][1] if i > 0 else ";"
-        after = tokens[i + 1] if i + 1 < len(tokens) else ("op", ";", line)
-        if before == ".":
-            if after[1] == "=" and _writing_option(tokens, i):
-                found.append(GeoCommand(path, line, _option_name(tokens, i),
-                                        "names a file gmsh writes or a program it runs"))
-            continue
-        starts_string = after[0] in ("string", "name")
-        if word in GEO_KEYWORDS:
-            found.append(GeoCommand(path, line, word, GEO_KEYWORDS[word]))
-        elif word in GEO_STRING_COMMANDS and starts_string:
-            found.append(GeoCommand(path, line, word, GEO_STRING_COMMANDS[word]))
-        elif word == "Printf" and _redirected(tokens, i + 1):
-            found.append(GeoCommand(path, line, "Printf > file", "writes a file"))
-        elif word in GEO_INCLUDES and starts_string:
-            if after[0] != "string":
-                found.append(GeoCommand(path, line, word, "reads a file whose name is computed "
-                                        "(it cannot be checked before gmsh runs it)"))
-                continue
-            target = _relative_to(path, after[1][1:-1] if len(after[1]) > 1 else "")
-            if word == "Include" or _read_as_script(target, path, line, word, found):
-                _scan_geo(target, found, seen)
-
-
-def _geo_tokens(text: str) -> list[tuple[str, str, int]]:
-    """``(kind, text, line)`` of the tokens of a .geo text (blanks and comments dropped);
-    strings are quoted by ``"`` or ``'`` without escapes, as gmsh's lexer reads them."""
-    out, line = [], 1
-    for m in _GEO_TOKEN.finditer(text):
-        kind, value = m.lastgroup, m.group()
-        if kind not in ("space", "newline", "comment"):
-            out.append((kind, value, line))
-        line += value.count("\n")
-    return out
-
-
-def _redirected(tokens, i: int) -> bool:
-    """The ``Printf`` whose ``(`` is ``tokens[i]`` is followed by ``>`` or ``>>``."""
-    if i >= len(tokens) or tokens[i][1] != "(":
-        return False
-    depth = 0
-    for j in range(i, len(tokens)):
-        depth += {"(": 1, ")": -1}.get(tokens[j][1], 0)
-        if depth == 0:
-            return j + 1 < len(tokens) and tokens[j + 1][1] in (">", ">>")
-    return False
-
-
-def _option_name(tokens, i: int) -> str:
-    """``Category.Option`` (``Category[n].Option``) of the option name at ``tokens[i]``."""
-    j = i - 2
-    if j >= 0 and tokens[j][1] == "]":
-        depth = 0
-        while j >= 0:
-            depth += {"]": 1, "[": -1}.get(tokens[j][1], 0)
-            if depth == 0:
-                break
-            j -= 1
-        j -= 1
-    category = tokens[j][1] if j >= 0 and tokens[j][0] == "name" else "?"
-    return f"{category}.{tokens[i][1]}"
-
-
-def _writing_option(tokens, i: int) -> bool:
-    category, option = _option_name(tokens, i).split(".", 1)
-    return category == "Solver" or option.rstrip("0123456789").endswith(GEO_OPTION_SUFFIXES)
-
-
-def _regular_file(path: Path) -> bool:
-    try:
-        return stat.S_ISREG(os.stat(path).st_mode)
-    except (OSError, ValueError):
-        return False
-
-
-def _relative_to(including: Path, name: str) -> Path:
-    """gmsh's FixRelativePath: a relative name is taken from the including file's
-    directory."""
-    target = Path(name)
-    return target if target.is_absolute() else including.parent / target
-
-
-def _read_as_script(target: Path, path: Path, line: int, word: str,
-                    found: list[GeoCommand]) -> bool:
-    """Whether gmsh's ``Merge`` parses ``target`` as a script (else it is data, or a
-    program, which is recorded in ``found``)."""
-    ext = target.suffix
-    if ext in GEO_PROGRAM_EXTENSIONS:
-        found.append(GeoCommand(path, line, f"{word} {target.name}",
-                                GEO_PROGRAM_EXTENSIONS[ext]))
-        return False
-    if ext in GEO_DATA_EXTENSIONS or not _regular_file(target):
-        return False
-    try:
-        with open(target, "rb") as f:
-            head = f.read(16)
-    except OSError:
-        return False
-    return not head.startswith(GEO_DATA_HEADERS)
 
 
 BUILDERS: dict[str, Callable[..., Mesh]] = {
