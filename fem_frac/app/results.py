@@ -86,13 +86,14 @@ class CrackWriter:
       positive when the faces part), ``normal (3)``: the unit normal from side a to side b,
       ``opened_step`` and ``opened_time``: when the face first appeared.
 
-    A face's step is the first step :meth:`record` saw it in (call it every step: the output
-    stage's observers are); faces are named by their corners' reference positions, which
-    later cracks and extractions keep. Faces whose other side has left with a rigid body are
-    not written. A step without a crack face (before the first crack, or once no finite
-    element is left) holds one ``vertex`` cell at the centre of the mesh's bounding box with
-    ``opened_step`` -1: meshio cannot read a .vtu without cells, ParaView drops a series'
-    part that first appears mid-way, and the rigid fragments of the main series show their
+    A face's step is the first step :meth:`record` saw it in (the output stage calls it
+    every step, written or not; a CrackWriter is also an observer ``(n, world)``); faces are
+    named by their corners' reference positions, which later cracks and extractions keep.
+    Faces whose other side has left with a rigid body are not written. A step without a
+    crack face (before the first crack, or once no finite element is left) holds one
+    ``vertex`` cell at the centre of the mesh's bounding box with ``opened_step`` -1: meshio
+    cannot read a .vtu without cells, ParaView drops a series' part that first appears
+    mid-way, and the rigid fragments of the main series show their
     own faces."""
 
     def __init__(self, series: SeriesWriter):
@@ -102,7 +103,7 @@ class CrackWriter:
         self._mesh, self._faces = None, None
 
     @property
-    def pvd_path(self):
+    def pvd_path(self) -> Path:
         return self.series.pvd_path
 
     @property
