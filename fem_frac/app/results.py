@@ -93,8 +93,7 @@ class CrackWriter:
     crack face (before the first crack, or once no finite element is left) holds one
     ``vertex`` cell at the centre of the mesh's bounding box with ``opened_step`` -1: meshio
     cannot read a .vtu without cells, ParaView drops a series' part that first appears
-    mid-way, and the rigid fragments of the main series show their
-    own faces."""
+    mid-way, and the rigid fragments of the main series show their own faces."""
 
     def __init__(self, series: SeriesWriter):
         self.series = series
