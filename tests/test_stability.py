@@ -76,7 +76,9 @@ def run_cli(case: Path, overrides: list[str], out: Path) -> Result:
         code = main(argv)
     r = Result(code, out, err.getvalue())
     if (out / "summary.json").is_file():
-        r.summary = json.loads((out / "summary.json").read_text())
+        summary = json.loads((out / "summary.json").read_text())
+        # a run that stopped leaves a summary of how far it got, not the full one
+        r.summary = summary if summary["status"] == "completed" else None
     if (out / "history.csv").is_file():
         r.history = read_history(out / "history.csv")
     return r

@@ -306,11 +306,14 @@ def _study(args) -> int:
     log(f"study      {args.study}: {len(study.runs)} runs of {study.case_path} -> {out_dir}")
     try:
         results = run_study(study, out_dir, args.workers, log)
+        outcome = write_outputs(study, results, out_dir)
     except KeyboardInterrupt:
         print("interrupted; finished runs are kept (run the study again to resume)",
               file=sys.stderr)
         return 130
-    outcome = write_outputs(study, results, out_dir)
+    except FemFracError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
     for w in outcome.warnings:
         print(f"warning: {w}", file=sys.stderr)
     failed = [r for r in results if not r.ok]

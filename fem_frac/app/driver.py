@@ -23,7 +23,7 @@ from ..timing import StageTimer
 from ..world.equilibrium import EquilibriumStage
 from ..world.stage import Stage, march
 from ..world.state import World, body_of
-from ..writers.directory import prepare_directory
+from ..writers.directory import Manifest, check_directory, prepare_directory
 from ..writers.history import HistoryWriter
 from ..writers.series import SeriesWriter
 from .output import OutputPlan, OutputStage, Progress, Tally, TallyStage
@@ -188,17 +188,20 @@ def run_case(case: Case, case_path: Path, out_dir: Path, name: str, overwrite: b
     step it reached and raises on (:class:`~fem_frac.errors.Interrupted`,
     :class:`~fem_frac.errors.SolverError`), its output kept."""
     timer = StageTimer()
+    check_directory(out_dir, name, overwrite)  # an occupied directory: before meshing
     setup = prepare(case, case_path.parent, timer, log)
     # after validation (a bad case never touches earlier results), before the long stages
     prepare_directory(out_dir, name, overwrite)
+    manifest = Manifest(out_dir)
     if resolved_yaml is not None:
-        (out_dir / "case.resolved.yaml").write_text(resolved_yaml)
+        manifest.add("case.resolved.yaml").write_text(resolved_yaml)
+    manifest.add("summary.json.tmp", "summary.json")
     status = RunStatus(out_dir / "summary.json", case_path, setup.grid.steps)
     status.record("running")
-    series = SeriesWriter(out_dir, name)
+    series = SeriesWriter(out_dir, name, manifest=manifest)
     with terminated_as_interrupt():
         try:
-            world, tally, record = _march(setup, out_dir, name, series, status, timer, log)
+            world, tally, record = _march(setup, manifest, series, status, timer, log)
         except (KeyboardInterrupt, Interrupted) as exc:
             signum = exc.signum if isinstance(exc, Interrupted) else signal.SIGINT
             status.record("interrupted", message=f"interrupted by {signal.Signals(signum).name}"
@@ -216,17 +219,17 @@ def run_case(case: Case, case_path: Path, out_dir: Path, name: str, overwrite: b
     return result
 
 
-def _march(setup: Setup, out_dir: Path, name: str, series: SeriesWriter, status: RunStatus,
+def _march(setup: Setup, manifest: Manifest, series: SeriesWriter, status: RunStatus,
            timer: StageTimer, log: Log):
     """Every step of the case with its output: the last world, the tally and the
     reference's recorder (``None`` when the case declares none that needs one)."""
-    case = setup.case
-    cracks = SeriesWriter(out_dir, f"{name}_crack") if (
+    case, out_dir = setup.case, manifest.directory
+    cracks = SeriesWriter(out_dir, f"{series.name}_crack", manifest=manifest) if (
         case.fracture is not None and case.output.crack_surface) else None
     world, tally = start(setup, timer, log)
     record = recorder(case, setup.disc.problem)
     observers = ((record,) if record is not None else ()) + (status,)
-    with HistoryWriter(out_dir / "history.csv") as history:
+    with HistoryWriter(manifest.add("history.csv")) as history:
         output = OutputStage(output_plan(case, setup.grid), layout_of(case), series, history,
                              tally, timer, cracks, Progress(log, setup.grid.steps), observers)
         with timer("steps"):

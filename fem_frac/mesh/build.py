@@ -40,7 +40,8 @@ def build_mesh(section: MeshSection, case_dir: Path) -> Mesh:
         if path.suffix == ".geo":
             from .geometry import from_geo_file
 
-            return from_geo_file(path, section.element_size, section.order)
+            return from_geo_file(path, section.element_size, section.order,
+                                 allow_commands=section.allow_geo_commands)
         from .reader import read_mesh_file
 
         return read_mesh_file(path, section.order)
