@@ -78,3 +78,27 @@ def _faces(mesh: Mesh, axis: int, value: float) -> np.ndarray:
     faces = exterior_facets(mesh.tets)
     on = np.all(np.isclose(mesh.points[faces][:, :, axis], value), axis=1)
     return faces[on]
+
+
+@pytest.mark.parametrize(
+    "kw,key,words",
+    [
+        (dict(t_end=1e100, dt=1e-100), "dt", "more than"),
+        (dict(dt=1e-320, steps=2), "dt", "outside"),
+        (dict(t_end=1e-200, steps=2), "t_end", "outside"),
+    ],
+)
+def test_time_grid_refuses_steps_no_arithmetic_survives(kw, key, words):
+    with pytest.raises(CaseError, match=words) as err:
+        time_grid(quasi(**kw))
+    assert err.value.path == ("analysis", key)
+
+
+def test_a_ramp_that_never_starts_is_refused_and_never_divides_by_zero():
+    late = schema.RampCurve(type="ramp", t_start=1.0)
+    with pytest.raises(CaseError, match="never act") as err:
+        resolve_curves([(("boundary_conditions", 0, "curve"), "late")], {"late": late},
+                       quasi(steps=2))
+    assert err.value.path == ("load_curves", "late", "t_start")
+    step = make_curve(late, 1.0)  # its own end is the analysis's: no span
+    assert [step(t) for t in (0.5, 1.0)] == [0.0, 1.0]

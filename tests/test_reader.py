@@ -259,3 +259,44 @@ def test_reading_a_file_does_not_import_gmsh():
         "assert m.n_tets > 0; assert 'gmsh' not in sys.modules, 'gmsh imported'"
     )
     subprocess.run([sys.executable, "-c", code], check=True)
+
+
+@pytest.mark.parametrize(
+    "change,words",
+    [
+        (lambda p, t: p.__setitem__((4, 1), np.nan), r"1 points have non-finite coordinates"),
+        (lambda p, t: p.__setitem__((4, 2), np.inf), r"non-finite coordinates \(first: point 4\)"),
+        (lambda p, t: p.__setitem__((4, 0), 1e200), r"coordinates up to 1e\+200"),
+        (lambda p, t: t.__setitem__((2, 1), 10**6), r"1 tetra cells name nodes outside 0\.\.\d+"),
+        (lambda p, t: t.__setitem__((0, 3), -1), r"outside 0\.\.\d+ \(first: cell 0"),
+    ],
+    ids=["nan", "inf", "huge", "index-high", "index-negative"],
+)
+def test_non_finite_points_and_indices_out_of_range_raise(tmp_path, change, words):
+    base = structured_box((2, 2, 2))
+    points, tets = base.points.copy(), base.tets.copy()
+    change(points, tets)
+    meshio.write(tmp_path / "bad.vtu", meshio.Mesh(points, [("tetra", tets)]))
+    with pytest.raises(MeshError, match=words) as info:
+        read_mesh_file(tmp_path / "bad.vtu")
+    assert "\n" not in str(info.value)
+
+
+def test_triangle_indices_out_of_range_raise(tmp_path):
+    base = structured_box((2, 2, 2))
+    tris = exterior_facets(base.tets)[:4].copy()
+    tris[1, 0] = len(base.points) + 3
+    cells = [("tetra", base.tets), ("triangle", tris)]
+    meshio.write(tmp_path / "bad.vtu", meshio.Mesh(base.points, cells))
+    with pytest.raises(MeshError, match="1 triangle cells name nodes outside"):
+        read_mesh_file(tmp_path / "bad.vtu")
+
+
+def test_truncated_gmsh_file_raises_one_line(tmp_path):
+    whole = (MESHES / "block_with_hole.msh").read_bytes()
+    for fraction in (0.1, 0.5, 0.9):
+        path = tmp_path / f"cut{fraction}.msh"
+        path.write_bytes(whole[: int(len(whole) * fraction)])
+        with pytest.raises(MeshError) as info:
+            read_mesh_file(path)
+        assert str(path) in str(info.value) and "\n" not in str(info.value)

@@ -9,7 +9,9 @@ state), output so far kept.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import sys
+import warnings
 from pathlib import Path
 
 from .. import __version__
@@ -160,12 +162,13 @@ def main(argv: list[str] | None = None) -> int:
         case, source = load_case(args.case, args.overrides)
         _warn_units(case, source)
         _refuse_before_meshing(case, args)
-        if args.command == "check":
-            from .report import check_report
+        with _overflow_stops():
+            if args.command == "check":
+                from .report import check_report
 
-            print(check_report(case, source))
-        else:
-            _run(case, source, args)
+                print(check_report(case, source))
+            else:
+                _run(case, source, args)
         return 0
     except CaseErrors as exc:
         _error(exc.line())
@@ -208,6 +211,17 @@ def _refuse_before_meshing(case, args) -> None:
     check_reference(case)
 
 
+@contextlib.contextmanager
+def _overflow_stops():
+    """numpy's "overflow encountered" warning raised as an error where it happens: a
+    state that overflowed is a numerical failure (exit 3, naming the step and stage), not a
+    run that ends well with infinite energies."""
+    with warnings.catch_warnings():
+        warnings.filterwarnings("error", message="overflow encountered",
+                                category=RuntimeWarning)
+        yield
+
+
 def _stage_of(exc: BaseException) -> str:
     """``step n, stage s: `` of the step loop's frame ``exc`` passed through, unless the
     message says so already (a numerical failure deep in shared code knows neither)."""
@@ -229,7 +243,7 @@ def _unexpected(exc: Exception, args) -> int:
     import numpy as np
 
     text = f"{type(exc).__name__}: {exc}"
-    if isinstance(exc, (ArithmeticError, np.linalg.LinAlgError)):
+    if isinstance(exc, (ArithmeticError, np.linalg.LinAlgError, RuntimeWarning)):
         _error(f"{args.case}: {_stage_of(exc)}numerical failure: {text}")
         return 3
     _error(f"{args.case}: internal error ({text}); please report it with the case file")

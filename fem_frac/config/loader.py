@@ -14,7 +14,7 @@ from pathlib import Path
 from pydantic import BaseModel, ValidationError
 
 from ..errors import CaseError, FemFracError
-from .safe_yaml import MAX_DEPTH, load_yaml, plain_data, read_text
+from .safe_yaml import MAX_DEPTH, load_yaml, plain_data, read_text, shorten
 from .schema import Case
 
 
@@ -58,7 +58,7 @@ class Source:
     def locate(self, loc: tuple) -> str:
         text = self._override(loc)
         if text is not None:
-            return f"{self.path}: --set {text}"
+            return f"{self.path}: --set {shorten(text)}"
         line, col = _position(self.data, loc)
         return f"{self.path}:{line}:{col}"
 
@@ -121,33 +121,34 @@ def parse_override(text: str) -> tuple[tuple, object]:
     :class:`FemFracError` naming the option.
     """
     key, sep, value = text.partition("=")
+    option = f"--set {shorten(text)}"
     if not sep or not key.strip():
-        raise FemFracError(f"--set {text}: expected KEY.PATH=VALUE")
+        raise FemFracError(f"{option}: expected KEY.PATH=VALUE")
     parts: list = []
     for piece in key.strip().replace("[", ".").replace("]", "").split("."):
         if not piece.strip():
-            raise FemFracError(f"--set {text}: empty key in '{key}'")
+            raise FemFracError(f"{option}: empty key in '{shorten(key)}'")
         parts.append(int(piece) if piece.isdigit() and piece.isascii() else piece.strip())
     if len(parts) > MAX_DEPTH:
-        raise FemFracError(f"--set {text}: a key path of more than {MAX_DEPTH} parts")
-    parsed = load_yaml(value, f"--set {text}") if value.strip() else None
+        raise FemFracError(f"{option}: a key path of more than {MAX_DEPTH} parts")
+    parsed = load_yaml(value, option) if value.strip() else None
     return tuple(parts), parsed
 
 
 def apply_override(data, key_path: tuple, value, text: str) -> list[tuple]:
     """Set ``key_path`` of ``data`` to ``value``, creating the mappings (or lists) on the
     way that are absent; returns the paths of those it created."""
-    node, created = data, []
+    node, created, option = data, [], f"--set {shorten(text)}"
     for i, part in enumerate(key_path):
         here = format_key(key_path[:i]) if i else "the case"
         if isinstance(node, list):
             if not isinstance(part, int) or not 0 <= part < len(node):
-                raise FemFracError(f"--set {text}: {here} has no item {part} "
+                raise FemFracError(f"{option}: {here} has no item {part} "
                                    f"(it has {len(node)})")
         elif isinstance(node, dict):
             part = str(part)
         else:
-            raise FemFracError(f"--set {text}: {here} holds {_what(node)}, not a mapping of "
+            raise FemFracError(f"{option}: {here} holds {_what(node)}, not a mapping of "
                                f"keys or a list")
         if i == len(key_path) - 1:
             node[part] = value
@@ -264,7 +265,7 @@ def case_error(err: dict, data) -> CaseError:
             loc, f"unknown type {_show(tag)}" + _did_you_mean(str(tag), expected, always=True)
         )
     if kind == "union_tag_not_found":
-        return CaseError(loc, _missing_type(data, loc))
+        return _missing_type(data, loc)
     messages = {
         "literal_error": f"must be one of {ctx.get('expected')}, got {got}",
         "finite_number": f"must be a finite number, got {got}",
@@ -303,21 +304,27 @@ def _show(value) -> str:
     return text if len(text) <= 60 else text[:57] + "..."
 
 
-def _missing_type(data, loc: tuple) -> str:
-    """What to write as ``type:`` where a section says none."""
+def _missing_type(data, loc: tuple) -> CaseError:
+    """What to write as ``type:`` where a section says none (at a misspelt ``type`` key,
+    if there is one)."""
     node = data
     for part in loc:
         node = node.get(part) if isinstance(node, dict) else (
             node[part] if isinstance(node, list) and isinstance(part, int)
             and 0 <= part < len(node) else None)
-    if loc == ("analysis",) and isinstance(node, dict) and {"t_end", "dt", "steps"} & set(node):
-        return ("missing 'type' key: t_end, dt and steps are for 'type: quasi_static' (load "
-                "steps) or 'type: dynamic' (with inertia); without a type the analysis is one "
-                "static step")
+    keys = [str(k) for k in node] if isinstance(node, dict) else []
+    close = difflib.get_close_matches("type", keys, n=1, cutoff=0.6)
+    if close:
+        return CaseError(loc + (close[0],), "unknown key (did you mean 'type'?)")
+    if loc == ("analysis",) and {"t_end", "dt", "steps"} & set(keys):
+        return CaseError(loc, "missing 'type' key: t_end, dt and steps are for 'type: "
+                         "quasi_static' (load steps) or 'type: dynamic' (with inertia); "
+                         "without a type the analysis is one static step")
     tags = [t for m in _members(_annotation_at(data, loc)[0]) if isinstance(m, type)
             and issubclass(m, BaseModel) and "type" in m.model_fields
             for t in typing.get_args(m.model_fields["type"].annotation)]
-    return "missing 'type' key" + (f" (one of: {', '.join(tags)})" if tags else "")
+    return CaseError(loc, "missing 'type' key" + (f" (one of: {', '.join(tags)})" if tags
+                                                   else ""))
 
 
 def _expected_length(ctx: dict) -> str:

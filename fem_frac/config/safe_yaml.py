@@ -56,6 +56,13 @@ def read_text(path: Path, what: str = "case file") -> str:
                            "save the file as UTF-8") from None
 
 
+def shorten(text: str, most: int = 80) -> str:
+    """``text`` for a one-line message: cut in the middle when longer than ``most``."""
+    if len(text) <= most:
+        return text
+    return f"{text[: most // 2]}...({len(text) - most + 3} characters)...{text[-most // 2 + 3:]}"
+
+
 def _line_col(text, offset: int) -> tuple[int, int]:
     """1-based line and column of ``offset`` in ``text`` (str or bytes)."""
     newline = b"\n" if isinstance(text, bytes) else "\n"
@@ -86,7 +93,10 @@ def load_yaml(text: str, where: str):
         return yaml_parser().load(io.StringIO(text))
     except MarkedYAMLError as exc:
         mark = exc.problem_mark or exc.context_mark
-        problem = " ".join(str(exc.problem or exc.context or "invalid YAML").split())
+        problem = str(exc.problem or exc.context or "invalid YAML")
+        if problem.startswith("but ") and exc.context:  # "expected X" "but found Y"
+            problem = f"{exc.context}, {problem}"
+        problem = " ".join(problem.split())
         raise FemFracError(f"{at(mark.line + 1, mark.column + 1) if mark else where}: "
                            f"YAML: {problem}") from None
     except YAMLError as exc:
@@ -156,25 +166,30 @@ def plain_data(node):
     Raises a :class:`CaseError` at the key path of the first value no case can hold (see
     the module's description), of nesting beyond :data:`MAX_DEPTH` (an alias that refers to
     itself nests without end) or of the value past :data:`MAX_VALUES`."""
-    return _plain(node, (), [0])
+    return _plain(node, (), [0], set())
 
 
-def _plain(node, path: tuple, count: list[int]):
+def _plain(node, path: tuple, count: list[int], open_: set[int]):
     count[0] += 1
     if count[0] > MAX_VALUES:
         raise CaseError(path, f"more than {MAX_VALUES:,} values (aliases expanding?)")
     if len(path) > MAX_DEPTH:
-        raise CaseError(path[:MAX_DEPTH], f"nested deeper than {MAX_DEPTH} levels (an "
-                        "alias that refers to itself?)")
-    if isinstance(node, dict):
-        out = {}
-        for k, v in node.items():
-            if not isinstance(k, str):
-                raise CaseError(path + (k,), f"a key must be a name, got {_kind(k)}")
-            out[str(k)] = _plain(v, path + (k,), count)
-        return out
-    if isinstance(node, list):
-        return [_plain(v, path + (i,), count) for i, v in enumerate(node)]
+        raise CaseError(path[:MAX_DEPTH], f"nested deeper than {MAX_DEPTH} levels")
+    if isinstance(node, (dict, list)):
+        if id(node) in open_:
+            raise CaseError(path, "an alias that refers to itself (it would nest without end)")
+        open_.add(id(node))
+        try:
+            if isinstance(node, list):
+                return [_plain(v, path + (i,), count, open_) for i, v in enumerate(node)]
+            out = {}
+            for k, v in node.items():
+                if not isinstance(k, str):
+                    raise CaseError(path + (k,), f"a key must be a name, got {_kind(k)}")
+                out[str(k)] = _plain(v, path + (k,), count, open_)
+            return out
+        finally:
+            open_.discard(id(node))
     if isinstance(node, bool) or node is None:
         return node
     for t in (int, float, str):

@@ -25,6 +25,7 @@ from .analysis import (
 )
 from .base import (
     BoxSelection,
+    FiniteFloat,
     NonNegativeFloat,
     PositiveFloat,
     PositiveInt,
@@ -77,6 +78,7 @@ __all__ = [
     "Displacement",
     "DynamicAnalysis",
     "Equilibrium",
+    "FiniteFloat",
     "Fixed",
     "Fracture",
     "Fragments",

@@ -6,7 +6,15 @@ from typing import Annotated, Literal
 
 from pydantic import Field, model_validator
 
-from .base import BoxSelection, NonNegativeFloat, Pair, PositiveFloat, Section, Vector3
+from .base import (
+    BoxSelection,
+    FiniteFloat,
+    NonNegativeFloat,
+    Pair,
+    PositiveFloat,
+    Section,
+    Vector3,
+)
 
 
 class RampCurve(Section):
@@ -16,7 +24,7 @@ class RampCurve(Section):
     type: Literal["ramp"]
     t_start: NonNegativeFloat = 0.0
     t_end: PositiveFloat | None = None
-    value: float = 1.0
+    value: FiniteFloat = 1.0
 
     @model_validator(mode="after")
     def _order(self):
@@ -29,7 +37,7 @@ class ConstantCurve(Section):
     """``value`` at every time (a load applied at once)."""
 
     type: Literal["constant"]
-    value: float = 1.0
+    value: FiniteFloat = 1.0
 
 
 class TableCurve(Section):
@@ -81,9 +89,9 @@ class Displacement(_Where):
     """Prescribed displacement components; an omitted component stays free."""
 
     type: Literal["displacement"]
-    x: float | None = None
-    y: float | None = None
-    z: float | None = None
+    x: FiniteFloat | None = None
+    y: FiniteFloat | None = None
+    z: FiniteFloat | None = None
     curve: CurveName | None = None
 
     @model_validator(mode="after")
@@ -111,7 +119,7 @@ class Pressure(_Where):
     """Pressure (Pa) acting against the outward normal: positive pushes into the body."""
 
     type: Literal["pressure"]
-    pressure: float
+    pressure: FiniteFloat
     curve: CurveName | None = None
 
 
