@@ -25,10 +25,11 @@ from ..world.stage import Stage, march
 from ..world.state import World, body_of
 from ..writers.directory import Manifest, check_directory, prepare_directory
 from ..writers.history import HistoryWriter
+from ..writers.paraview import view_scale, write_paraview_script
 from ..writers.series import SeriesWriter
 from .output import OutputPlan, OutputStage, Progress, Tally, TallyStage
 from .reference import check_reference, recorder, reference_error
-from .results import Layout, summary
+from .results import CrackWriter, Layout, summary
 from .status import RunStatus, terminated_as_interrupt, write_json
 
 
@@ -213,6 +214,10 @@ def run_case(case: Case, case_path: Path, out_dir: Path, name: str, overwrite: b
     result = _summary(case, case_path, setup, world, tally, timer, log, record)
     result["output"] = {"pvd": str(series.pvd_path), "steps": len(series.entries),
                         "history": str(out_dir / "history.csv")}
+    manifest.add(f"{name}_view.py")
+    result["output"]["view"] = str(write_paraview_script(
+        out_dir, name, view_scale(result["max_displacement"], setup.disc.mesh.points),
+        case.fracture is not None and case.output.crack_surface))
     write_json(out_dir / "summary.json", result)
     _warn_single_pass(case, setup, tally)
     log(f"output     {series.pvd_path}")
@@ -224,8 +229,8 @@ def _march(setup: Setup, manifest: Manifest, series: SeriesWriter, status: RunSt
     """Every step of the case with its output: the last world, the tally and the
     reference's recorder (``None`` when the case declares none that needs one)."""
     case, out_dir = setup.case, manifest.directory
-    cracks = SeriesWriter(out_dir, f"{series.name}_crack", manifest=manifest) if (
-        case.fracture is not None and case.output.crack_surface) else None
+    cracks = CrackWriter(SeriesWriter(out_dir, f"{series.name}_crack", manifest=manifest)) \
+        if case.fracture is not None and case.output.crack_surface else None
     world, tally = start(setup, timer, log)
     record = recorder(case, setup.disc.problem)
     observers = ((record,) if record is not None else ()) + (status,)

@@ -23,7 +23,7 @@ from ..world.stage import Step
 from ..world.state import Body, World
 from ..writers.history import HistoryWriter
 from ..writers.series import SeriesWriter
-from .results import Layout, empty, frame, history_row, write_crack_surface, write_step
+from .results import CrackWriter, Layout, empty, frame, history_row, write_step
 
 
 def step_info(step: Step) -> StepInfo:
@@ -223,7 +223,7 @@ class OutputStage:
 
     def __init__(self, plan: OutputPlan, layout: Layout, series: SeriesWriter,
                  history: HistoryWriter, tally: Tally, timer: StageTimer,
-                 cracks: SeriesWriter | None = None, progress: Progress | None = None,
+                 cracks: CrackWriter | None = None, progress: Progress | None = None,
                  observers: tuple = ()):
         self.plan, self.layout, self.series, self.history = plan, layout, series, history
         self.tally, self.timer, self.cracks = tally, timer, cracks
@@ -236,6 +236,8 @@ class OutputStage:
         self.history.write(row)
         for observe in self.observers:
             observe(step.n, world)
+        if self.cracks is not None:
+            self.cracks.record(step.n, world)  # the step every crack face opened in
         if self.plan.due(step.n):
             self._write(world)
         if self.progress is not None:
@@ -251,4 +253,4 @@ class OutputStage:
             data = empty(frame(last.disc, last, self.layout))
         write_step(self.series, world, data, self.layout)
         if self.cracks is not None:
-            write_crack_surface(self.cracks, world, last.mesh)
+            self.cracks.write(world, last.mesh)
