@@ -322,3 +322,22 @@ def test_view_script_compiles_and_names_the_series(tmp_path, cracks):
                  "displacement", "opening_norm"):
         assert name in text
     assert script_text("plate", 50.0, cracks, tmp_path) == text
+
+
+def test_crack_measures_count_a_face_once_whatever_left():
+    """Cut a unit-section bar across: one crack face per face of the section, area 1; once
+    the piece on one side leaves the mesh the faces and the area stay (one side each)."""
+    from fem_frac.fracture.summary import crack_measures
+    from fem_frac.fracture.topology import extract, fragments
+
+    mesh = cut(structured_box((4, 3, 3)), 0.5)
+    whole = crack_measures(mesh)
+    assert whole.faces == len(mesh.boundaries["crack"]) // 2
+    _, labels = fragments(mesh.tets)
+    right = labels == labels[np.argmax(mesh.points[mesh.tets].mean(axis=1)[:, 0])]
+    left, _ = extract(mesh, ~right)
+    half = crack_measures(left)
+    assert half.faces == whole.faces and len(left.boundaries["crack"]) == whole.faces
+    area = 1.0 * 1.0  # the section of structured_box's unit cube
+    assert whole.area == pytest.approx(area, rel=1e-12)
+    assert half.area == pytest.approx(area, rel=1e-12)

@@ -13,8 +13,9 @@ from .topology import CRACK
 
 @dataclass(frozen=True)
 class CrackMeasures:
-    """``faces``: interior faces opened so far (each is two triangles of the ``crack``
-    group, one per side); ``area``: their area in the reference configuration (one side)."""
+    """``faces``: interior faces opened so far (a face is two triangles of the ``crack``
+    group, one per side, or one once the other side has left with a rigid piece);
+    ``area``: their area in the reference configuration (each face once)."""
 
     faces: int
     area: float
@@ -25,8 +26,12 @@ def crack_measures(mesh: Mesh) -> CrackMeasures:
     if tri.size == 0:
         return CrackMeasures(0, 0.0)
     x = mesh.points[tri]
+    # the two sides of a face sit on copies of the same three reference positions
+    _, place = np.unique(x.reshape(-1, 3), axis=0, return_inverse=True)
+    _, once = np.unique(np.sort(place.reshape(-1, 3), axis=1), axis=0, return_index=True)
+    x = x[once]
     areas = 0.5 * np.linalg.norm(np.cross(x[:, 1] - x[:, 0], x[:, 2] - x[:, 0]), axis=1)
-    return CrackMeasures(len(tri) // 2, float(areas.sum() / 2.0))
+    return CrackMeasures(len(once), float(areas.sum()))
 
 
 @dataclass(frozen=True, eq=False)
