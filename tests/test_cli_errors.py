@@ -181,3 +181,77 @@ def test_unsupported_body_is_refused_before_solving(tmp_path, capsys):
     err = capsys.readouterr().err
     assert f"{case}:12:1: boundary_conditions:" in err
     assert "translation y" in err and "rotation about x" in err
+
+
+def _one_error(capsys) -> str:
+    err = capsys.readouterr().err.strip().splitlines()
+    errors = [line for line in err if line.startswith("error: ")]
+    assert len(errors) == 1 and "Traceback" not in "\n".join(err), err
+    return errors[0]
+
+
+def test_hill_reference_at_the_limit_load_is_refused_before_solving(tmp_path, capsys):
+    from pathlib import Path
+
+    shipped = Path(__file__).resolve().parents[1] / "cases" / "hollow_sphere_plastic.yaml"
+    text = shipped.read_text()
+    case = tmp_path / "case.yaml"
+    # limit load 2 sigma_Y ln(b/a) = 2 * 250e6 * ln 2 = 346.6 MPa
+    case.write_text(text.replace("pressure: 299.1e6", "pressure: 350e6"))
+    line = text[: text.index("pressure: 299.1e6")].count("\n") + 1
+    assert main(["check", str(case)]) == 2
+    error = _one_error(capsys)
+    assert f"{case}:{line}:" in error and "limit load 2 sigma_Y ln(b/a) = 3.466e+08" in error
+    assert main(["run", str(shipped), "-o", str(tmp_path / "out"), "-q",
+                 "--set", "boundary_conditions[3].pressure=-400e6"]) == 2
+    assert "--set boundary_conditions[3].pressure=-400e6" in _one_error(capsys)
+    assert not (tmp_path / "out").exists()
+
+
+def test_a_numerical_failure_names_the_step_and_stage(tmp_path, capsys, monkeypatch):
+    import numpy as np
+
+    from fem_frac.errors import SolverError
+    from fem_frac.world.equilibrium import EquilibriumStage
+
+    step_of = EquilibriumStage.__call__
+
+    def failing(self, step, world):
+        if step.n == 1:
+            from fem_frac.fem.tensors import principal
+
+            principal(np.full((6, 2), np.nan))  # LAPACK does not converge
+        return step_of(self, step, world)
+
+    monkeypatch.setattr(EquilibriumStage, "__call__", failing)
+    case = tmp_path / "case.yaml"
+    case.write_text(BASE)
+    assert main(["run", str(case), "-o", str(tmp_path / "out"), "-q"]) == 3
+    error = _one_error(capsys)
+    assert error.startswith(f"error: {case}: step 1, stage equilibrium: principal stresses: "
+                            "Eigenvalues did not converge"), error
+    assert SolverError.__name__ not in error
+
+
+def test_an_unforeseen_exception_is_one_line_exit_1(tmp_path, capsys, monkeypatch):
+    import fem_frac.app.report as report
+
+    def broken(case, source):
+        raise KeyError("nowhere\nat all")
+
+    monkeypatch.setattr(report, "check_report", broken)
+    case = tmp_path / "case.yaml"
+    case.write_text(BASE)
+    assert main(["check", str(case)]) == 1
+    error = _one_error(capsys)
+    assert error == (f"error: {case}: internal error (KeyError: 'nowhere\\nat all'); please "
+                     "report it with the case file")
+
+
+def test_an_overflow_is_a_numerical_failure(tmp_path, capsys):
+    case = tmp_path / "case.yaml"
+    # every value within the schema's bounds, the displacements 1e200 and their work not
+    case.write_text(BASE.replace("210e9", "1e-100").replace("-1e5", "-1e100"))
+    assert main(["run", str(case), "-o", str(tmp_path / "out"), "-q"]) == 3
+    error = _one_error(capsys)
+    assert f"{case}: step 1, stage " in error and "overflow" in error, error

@@ -133,7 +133,6 @@ def _first_error(case_file, capsys, *args) -> str:
         ("youngs_modulus: 210e9", "youngs_modulus: '210e9'", 9, "must be a number"),
         ("youngs_modulus: 210e9", "youngs_modulus: .inf", 9, "must be a finite number"),
         ("youngs_modulus: 210e9", "youngs_modulus: 1e400", 9, "must be a finite number"),
-        ("youngs_modulus: 210e9", "youngs_modulus: 1e300", 9, "must be <= 1e+100"),
         ("youngs_modulus: 210e9", "youngs_modulus: true", 9, "must be a number, got true"),
         ("element_size: 0.5", "element_size: .nan", 6, "must be a finite number"),
         ("traction: [0, 0, -1e5]", "traction: [0, .nan, -1e5]", 17, "finite"),

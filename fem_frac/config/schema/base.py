@@ -4,8 +4,9 @@ vectors and the box selection of faces or elements.
 Every model is strict: a number is a YAML number (not a quoted string, not ``true``), a
 flag is ``true`` or ``false`` (not ``yes``, ``on`` or 1), a whole number has no fraction,
 and every float is finite (``.inf``, ``.nan`` and ``1e400``, which YAML reads as infinity,
-are refused where they are written) and at most :data:`MAX_MAGNITUDE` in size, so that the
-products and squares the solver forms of it stay finite.
+are refused where they are written). A finite value the arithmetic of the solve cannot
+carry (a load of 1e300 overflows the residual) is valid input: the run stops as a numerical
+failure (exit 3).
 """
 
 from __future__ import annotations
@@ -17,9 +18,6 @@ from pydantic import BaseModel, BeforeValidator, ConfigDict, Field
 # The largest whole number a count or an index may take: numpy's int32 range, far above any
 # sensible count (the work bounds of fem_frac.app.budget refuse much less).
 MAX_INT = 2**31 - 1
-# The largest size of a float: no quantity of a solid in any consistent unit system comes
-# near it, and the square of a product of two such values is still a double.
-MAX_MAGNITUDE = 1e100
 
 
 def _as_tuple(value):
@@ -34,9 +32,9 @@ def _not_bool(value):
     return value
 
 
-FiniteFloat = Annotated[float, Field(ge=-MAX_MAGNITUDE, le=MAX_MAGNITUDE, allow_inf_nan=False)]
-PositiveFloat = Annotated[float, Field(gt=0, le=MAX_MAGNITUDE, allow_inf_nan=False)]
-NonNegativeFloat = Annotated[float, Field(ge=0, le=MAX_MAGNITUDE, allow_inf_nan=False)]
+FiniteFloat = Annotated[float, Field(allow_inf_nan=False)]
+PositiveFloat = Annotated[float, Field(gt=0, allow_inf_nan=False)]
+NonNegativeFloat = Annotated[float, Field(ge=0, allow_inf_nan=False)]
 PositiveInt = Annotated[int, Field(gt=0, le=MAX_INT)]
 NonNegativeInt = Annotated[int, Field(ge=0, le=MAX_INT)]
 Vector3 = Annotated[tuple[FiniteFloat, FiniteFloat, FiniteFloat], BeforeValidator(_as_tuple)]
