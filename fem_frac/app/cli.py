@@ -195,9 +195,10 @@ def main(argv: list[str] | None = None) -> int:
 
 
 def _error(text: str) -> None:
-    """``error: text`` on one line of stderr, whatever the text holds (newlines, bytes
-    that were not UTF-8 in the arguments)."""
-    text = " ".join(str(text).split()).encode("utf-8", "backslashreplace").decode("utf-8")
+    """``error: text`` on one line of stderr, whatever the text holds (newlines, control
+    characters, bytes that were not UTF-8 in the arguments: escaped)."""
+    text = "".join(c if c.isprintable() else repr(c)[1:-1] for c in " ".join(str(text).split()))
+    text = text.encode("utf-8", "backslashreplace").decode("utf-8")
     print(f"error: {text}", file=sys.stderr)
 
 
