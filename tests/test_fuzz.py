@@ -505,10 +505,7 @@ def _sample() -> tuple[list[Bad], list[Bad]]:
 
 FAST, SLOW = _sample()
 # inputs refused, but not yet in the form this file asks for (the owner and the reason)
-XFAIL = {
-    "escape:directory-under-a-file": "output path escapes: fixed in writers/directory.py "
-    "(the message names the directory, not the case file and line of output.directory)",
-}
+XFAIL: dict[str, str] = {}  # id -> reason, for an input whose fix is known to be pending
 
 
 def _params(bads: list[Bad]) -> list:

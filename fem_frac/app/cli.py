@@ -267,10 +267,12 @@ def _log(quiet: bool):
 
 
 def _run(case, source, args) -> None:
+    from .budget import BOUNDS
     from .driver import output_location, run_case
     from .report import resolved_case, resolved_yaml
 
     out_dir, name = output_location(case, args.case, args.output)
+    _check_output_directory(case, args, out_dir, name)
     log = _log(args.quiet)
     log(f"case       {args.case}")
     try:
@@ -282,6 +284,7 @@ def _run(case, source, args) -> None:
             overwrite=args.overwrite,
             log=log,
             resolved_yaml=resolved_yaml(resolved_case(case, source, out_dir, name), source),
+            bounds=None if args.allow_large else BOUNDS,
         )
     finally:
         log.close()  # a run stopped early leaves its progress bar: end that line
@@ -298,6 +301,19 @@ def _run(case, source, args) -> None:
         extra += f", plastic dissipation = {summary['plastic_dissipation']:.6g}"
     log(f"done       max |u| = {summary['max_displacement']:.6g}, "
         f"strain energy = {summary['strain_energy']:.6g}{extra}, {t['total']:.2f} s")
+
+
+def _check_output_directory(case, args, out_dir: Path, name: str) -> None:
+    """An output directory that cannot hold the run, refused before any work; located at
+    ``output.directory`` when the case chose it."""
+    from ..writers.directory import check_directory
+
+    try:
+        check_directory(out_dir, name, args.overwrite)
+    except FemFracError as exc:
+        if args.output is None and case.output.directory is not None:
+            raise CaseError(("output", "directory"), str(exc)) from None
+        raise
 
 
 def _study(args) -> int:

@@ -27,6 +27,7 @@ from ..writers.directory import Manifest, check_directory, prepare_directory
 from ..writers.history import HistoryWriter
 from ..writers.paraview import view_scale, write_paraview_script
 from ..writers.series import SeriesWriter
+from .budget import BOUNDS, Bounds, check_budget
 from .output import OutputPlan, OutputStage, Progress, Tally, TallyStage
 from .reference import check_reference, recorder, reference_error
 from .results import CrackWriter, Layout, summary
@@ -69,10 +70,13 @@ def check_stages(case: Case) -> None:
                         "free) or whole_body: true")
 
 
-def prepare(case: Case, case_dir: Path, timer: StageTimer, log: Log = quiet) -> Setup:
-    """Everything before the first step; every input error is raised here."""
+def prepare(case: Case, case_dir: Path, timer: StageTimer, log: Log = quiet,
+            bounds: Bounds | None = BOUNDS) -> Setup:
+    """Everything before the first step; every input error is raised here, and the work
+    the case implies is refused over ``bounds`` (``None``: no bound) before meshing."""
     check_stages(case)
     check_reference(case)
+    check_budget(case, case_dir, bounds)
     with timer("mesh"):
         mesh = build_mesh(case.mesh, case_dir)
     log(f"mesh       {mesh.n_tets:,} tets, {mesh.n_points:,} vertices")
@@ -181,7 +185,8 @@ def output_location(case: Case, case_path: Path, directory: str | None) -> tuple
 
 
 def run_case(case: Case, case_path: Path, out_dir: Path, name: str, overwrite: bool = False,
-             log: Log = quiet, resolved_yaml: str | None = None) -> dict:
+             log: Log = quiet, resolved_yaml: str | None = None,
+             bounds: Bounds | None = BOUNDS) -> dict:
     """Run a case end to end and write its output. Returns the summary.
 
     The resolved case and a summary marked ``running`` are written before the first step
@@ -190,7 +195,7 @@ def run_case(case: Case, case_path: Path, out_dir: Path, name: str, overwrite: b
     :class:`~fem_frac.errors.SolverError`), its output kept."""
     timer = StageTimer()
     check_directory(out_dir, name, overwrite)  # an occupied directory: before meshing
-    setup = prepare(case, case_path.parent, timer, log)
+    setup = prepare(case, case_path.parent, timer, log, bounds)
     # after validation (a bad case never touches earlier results), before the long stages
     prepare_directory(out_dir, name, overwrite)
     manifest = Manifest(out_dir)
