@@ -27,6 +27,9 @@ def test_case_runs_and_writes_readable_output(case, tmp_path):
     assert summary["wall_time_s"]["total"] > 0
     pvd = out / f"{case.stem}.pvd"
     assert pvd.is_file() and (out / "case.resolved.yaml").is_file()
+    view = out / f"{case.stem}_view.py"  # the ParaView script beside the series
+    compile(view.read_text(), str(view), "exec")
+    assert summary["status"] == "completed" and summary["output"]["view"] == str(view)
     vtu = meshio.read(out / f"{case.stem}_000000.vtu")
     assert vtu.point_data["displacement"].shape == (len(vtu.points), 3)
     assert vtu.cell_data["stress"][0].shape[1] == 6
