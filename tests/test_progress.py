@@ -133,3 +133,21 @@ def test_a_run_on_a_pipe_and_with_q(tmp_path, capsys):
                      r"\(relative\), ", err, re.M)
     assert main(["run", str(case), "-o", str(tmp_path / "b"), "-q"]) == 0
     assert capsys.readouterr() == ("", "")
+
+
+def test_work_inside_a_step_shows_in_the_bar_and_nowhere_else():
+    """A fracture batch under way replaces the bar's status until the step is drawn; off
+    a terminal the note is not printed (the stage's own line is)."""
+    stream = Terminal()
+    console = Console(stream)
+    progress = Progress(console, 4)
+    progress(0, 0.0, StepInfo(0, 0.0))
+    progress(1, 0.1, StepInfo(2, 1e-9))
+    console.note("fracture   step 2: pass 1, opening 4 site(s), 0 opened so far")
+    assert _screen(stream.getvalue())[-1].endswith("opening 4 site(s), 0 opened so far")
+    for n in (2, 3, 4):
+        progress(n, 0.1 * n, StepInfo(2, 1e-9))
+    assert "t = 0.4" in _screen(stream.getvalue())[0]  # the step's status is back
+    plain = io.StringIO()
+    Console(plain).note("fracture   step 2: pass 1")
+    assert plain.getvalue() == ""

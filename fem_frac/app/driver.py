@@ -145,7 +145,8 @@ def stages(setup: Setup, timer: StageTimer, log: Log = quiet) -> list[Stage]:
     if case.fracture is not None:
         from ..fracture.stage import FractureStage
 
-        out.append(FractureStage(case.fracture, setup.dynamic, timer, log))
+        out.append(FractureStage(case.fracture, setup.dynamic, timer, log,
+                                 getattr(log, "note", None)))
     if case.fragments is not None:
         from ..rigid.stage import RigidStage
 

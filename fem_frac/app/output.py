@@ -121,6 +121,13 @@ class Console:
         else:
             print(message, file=self.stream, flush=True)
 
+    def note(self, message: str) -> None:
+        """Work under way inside a step (a fracture batch): shown in the bar's status on a
+        terminal until the step is drawn; nowhere else (a log file keeps the stages' own
+        lines)."""
+        if self.bar is not None:
+            self.bar.set_description_str(message, refresh=True)
+
     def close(self) -> None:
         """Ends a bar left drawn (a run stopped by an error or Ctrl-C), so what follows
         starts on a line of its own."""

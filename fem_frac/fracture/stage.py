@@ -135,9 +135,11 @@ class FractureStage:
     name = "fracture"
 
     def __init__(self, config: schema.Fracture, inertia: bool, timer: StageTimer,
-                 log: Callable[[str], None] | None = None):
+                 log: Callable[[str], None] | None = None,
+                 note: Callable[[str], None] | None = None):
         self.config, self.inertia, self.timer = config, inertia, timer
         self.log = log or (lambda _: None)
+        self.note = note or (lambda _: None)  # work under way, shown while it lasts
         self._topo: _Topology | None = None
 
     def __call__(self, step: Step, world: World) -> tuple[World, FractureEvent | None]:
@@ -172,6 +174,8 @@ class FractureStage:
             sites = self.sites(body, topo, step.n, passes, limit)
             if len(sites) == 0:
                 break
+            self.note(f"fracture   step {step.n}: pass {passes + 1}, opening {len(sites)} "
+                      f"site(s), {inserted} opened so far")
             sites, mesh, transfer, dropped, pieces = self.open(topo, body.n_pieces, sites)
             topo.refused[dropped] = True  # for the rest of this step: choose other sites
             if mesh is None:
