@@ -202,7 +202,9 @@ COMPARERS = {
 def compare_case(ref: Path, cand: Path, tol: Tol) -> list[str]:
     if not cand.is_dir():
         return [f"no case folder {cand}"]
-    files_a, files_b = ({p.name for p in d.iterdir() if p.is_file()} for d in (ref, cand))
+    # hidden files (the output manifest) are bookkeeping, not results
+    files_a, files_b = ({p.name for p in d.iterdir() if p.is_file()
+                         and not p.name.startswith(".")} for d in (ref, cand))
     return [f"{f}: file only in {'REF' if f in files_a else 'CAND'}"
             for f in sorted(files_a ^ files_b)] + [
         f"{f}: {m}" for f in sorted(files_a & files_b) if Path(f).suffix in COMPARERS
