@@ -74,6 +74,19 @@ def run_fracture(case_dict: dict, case_dir: Path = Path("."), observe=None):
     return setup, world, world.body.state, world.ledger, tally
 
 
+# a 2-step quasi-static cantilever on a coarse mesh (a history of three rows, in a second)
+SMALL_CASE = {
+    "mesh": {"geometry": {"type": "box", "lengths": [1.0, 0.2, 0.2]}, "element_size": 0.2,
+             "order": 1},
+    "material": {"youngs_modulus": 210e9, "poissons_ratio": 0.3},
+    "boundary_conditions": [
+        {"type": "fixed", "boundary": "xmin"},
+        {"type": "traction", "boundary": "xmax", "traction": [0.0, 0.0, -1e5]},
+    ],
+    "analysis": {"type": "quasi_static", "steps": 2},
+}
+
+
 def write_case(path: Path, case_dict: dict) -> Path:
     """Write ``case_dict`` as a YAML case file (block style, one key per line)."""
     from ruamel.yaml import YAML

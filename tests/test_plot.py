@@ -6,23 +6,13 @@ import sys
 import pytest
 
 from fem_frac.app.cli import main
-from solve import write_case
+from solve import SMALL_CASE, write_case
 
 pytest.importorskip("matplotlib")
 
 PNG = b"\x89PNG\r\n\x1a\n"
 
-# a 2-step quasi-static cantilever on a coarse mesh: a history of three rows
-CASE = {
-    "mesh": {"geometry": {"type": "box", "lengths": [1.0, 0.2, 0.2]}, "element_size": 0.2,
-             "order": 1},
-    "material": {"youngs_modulus": 210e9, "poissons_ratio": 0.3},
-    "boundary_conditions": [
-        {"type": "fixed", "boundary": "xmin"},
-        {"type": "traction", "boundary": "xmax", "traction": [0.0, 0.0, -1e5]},
-    ],
-    "analysis": {"type": "quasi_static", "steps": 2},
-}
+CASE = SMALL_CASE
 
 
 @pytest.fixture(scope="module")

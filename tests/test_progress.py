@@ -10,7 +10,7 @@ import pytest
 from fem_frac.app.cli import main
 from fem_frac.app.output import Console, Progress
 from fem_frac.solve.state import StepInfo
-from solve import write_case
+from solve import SMALL_CASE, write_case
 
 
 class Terminal(io.StringIO):
@@ -110,16 +110,7 @@ def test_quiet_shows_nothing(stream):
     assert stream.getvalue() == ""
 
 
-CASE = {
-    "mesh": {"geometry": {"type": "box", "lengths": [1.0, 0.2, 0.2]}, "element_size": 0.2,
-             "order": 1},
-    "material": {"youngs_modulus": 210e9, "poissons_ratio": 0.3},
-    "boundary_conditions": [
-        {"type": "fixed", "boundary": "xmin"},
-        {"type": "traction", "boundary": "xmax", "traction": [0.0, 0.0, -1e5]},
-    ],
-    "analysis": {"type": "quasi_static", "steps": 2},
-}
+CASE = SMALL_CASE
 
 
 def test_a_run_on_a_pipe_and_with_q(tmp_path, capsys):
