@@ -108,11 +108,11 @@ def start(setup: Setup, timer: StageTimer, log: Log = quiet) -> tuple[World, Tal
     """The world at t = 0, and the tally of what making it cost (the factorization of an
     implicit step's matrix, made here once)."""
     case, d = setup.case, setup.disc
-    tally = Tally(None)
+    solver, factorizations = "", 0
     if isinstance(d.stepper, ImplicitStepper) and not whole_body(case):
         with timer("factorize"):
             factor = d.stepper.elastic_factor()
-        tally.solver, tally.factorizations = factor.method, 1
+        solver, factorizations = factor.method, 1
         log(f"factorize  {factor.method}, {len(d.constrained.free):,} unknowns")
     with timer("initial state"):
         v0 = initial_velocity(d.space, case.analysis.initial_velocity) if setup.dynamic \
@@ -125,7 +125,6 @@ def start(setup: Setup, timer: StageTimer, log: Log = quiet) -> tuple[World, Tal
             # ledger's initial energy
             state, _ = d.stepper.step(state, 0.0, 0)
     body = body_of(d, state)
-    tally.body = body
     world = World(0.0, body, initial_ledger(state, d.law, d.ops))
     if case.fragments is not None:
         from ..rigid.stage import planes
@@ -135,7 +134,7 @@ def start(setup: Setup, timer: StageTimer, log: Log = quiet) -> tuple[World, Tal
             case.body_force.gravity if case.body_force is not None else (0.0, 0.0, 0.0))
         world = World(0.0, body, world.ledger, obstacles=planes(f),
                       gravity=np.asarray(gravity, dtype=float))
-    return world, tally
+    return world, Tally(body, solver, factorizations)
 
 
 def stages(setup: Setup, timer: StageTimer, log: Log = quiet) -> list[Stage]:
