@@ -1,6 +1,7 @@
 """A ParaView script written beside a series: ``<name>_view.py`` opens it with sensible
 defaults (warped by ``displacement`` at a visible scale, coloured by ``von_mises``, the
-crack-face series on top when there is one, at the last time step).
+crack-face series on top when there is one, the ground planes of rigid fragments in grey
+when there are some, at the last time step).
 
 Run it with ``pvpython <name>_view.py`` (renders and saves ``<name>_view.png``; add
 ``--interact`` for a window to turn the model in), with ``paraview --script=<name>_view.py``,
@@ -34,25 +35,30 @@ def view_scale(max_displacement: float, points: np.ndarray) -> float:
     return float(step * power)
 
 
-def write_paraview_script(directory: Path, name: str, scale: float, has_cracks: bool) -> Path:
+def write_paraview_script(directory: Path, name: str, scale: float, has_cracks: bool,
+                          ground: bool = False) -> Path:
     """Write ``<name>_view.py`` into ``directory`` (beside ``<name>.pvd`` and, with
-    ``has_cracks``, ``<name>_crack.pvd``); warp factor ``scale`` (see :func:`view_scale`).
+    ``has_cracks``, ``<name>_crack.pvd``; with ``ground``, ``<name>_ground.vtu``, shown
+    unwarped in grey, half transparent); warp factor ``scale`` (see :func:`view_scale`).
     Returns its path."""
     directory = Path(directory)
     path = directory / f"{name}_view.py"
-    path.write_text(script_text(name, scale, has_cracks, directory.resolve()))
+    path.write_text(script_text(name, scale, has_cracks, directory.resolve(), ground))
     return path
 
 
-def script_text(name: str, scale: float, has_cracks: bool, directory: Path) -> str:
+def script_text(name: str, scale: float, has_cracks: bool, directory: Path,
+                ground: bool = False) -> str:
     """The text of the view script (see the module docstring)."""
     return _TEMPLATE.format(name=repr(name), scale=repr(float(scale)),
-                            cracks=repr(bool(has_cracks)), directory=repr(str(directory)))
+                            cracks=repr(bool(has_cracks)), ground=repr(bool(ground)),
+                            directory=repr(str(directory)))
 
 
 _TEMPLATE = '''\
 """ParaView view of the fem_frac series {name}: the model warped by its displacement
-(WARP times), coloured by von_mises, the crack faces coloured by their opening.
+(WARP times), coloured by von_mises, the crack faces coloured by their opening, the ground
+planes (fixed: not warped) in grey, half transparent.
 
     pvpython <this file>               renders the last step, saves NAME_view.png
     pvpython <this file> --interact    and opens a window to turn the model in
@@ -75,11 +81,13 @@ from paraview.simple import (
     SaveScreenshot,
     Show,
     WarpByVector,
+    XMLUnstructuredGridReader,
 )
 
 NAME = {name}
 WARP = {scale}
 CRACKS = {cracks}
+GROUND = {ground}
 # where the series was written; the folder of this file wins when it is known
 WRITTEN_IN = {directory}
 
@@ -117,6 +125,15 @@ model.RescaleTransferFunctionToDataRange(False, True)
 if cracks is not None:
     cracks.RescaleTransferFunctionToDataRange(False, True)
 view.ResetCamera()
+# the ground after the camera is set: the model fills the view, the ground runs out of it
+if GROUND and os.path.exists(os.path.join(HERE, NAME + "_ground.vtu")):
+    plane = XMLUnstructuredGridReader(FileName=[os.path.join(HERE, NAME + "_ground.vtu")])
+    RenameSource(NAME + " ground", plane)
+    ground = Show(plane, view)
+    ColorBy(ground, None)
+    ground.AmbientColor = [0.6, 0.6, 0.6]
+    ground.DiffuseColor = [0.6, 0.6, 0.6]
+    ground.Opacity = 0.5
 Render(view)
 
 # run as a program (pvpython): save a picture, and with --interact open a window
