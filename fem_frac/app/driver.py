@@ -24,6 +24,7 @@ from ..world.equilibrium import EquilibriumStage
 from ..world.stage import Stage, march
 from ..world.state import World, body_of
 from ..writers.directory import Manifest, check_directory, prepare_directory
+from ..writers.ground import write_ground
 from ..writers.history import HistoryWriter
 from ..writers.paraview import view_scale, write_paraview_script
 from ..writers.series import SeriesWriter
@@ -204,6 +205,11 @@ def run_case(case: Case, case_path: Path, out_dir: Path, name: str, overwrite: b
     manifest.add("summary.json.tmp", "summary.json")
     status = RunStatus(out_dir / "summary.json", case_path, setup.grid.steps)
     status.record("running")
+    ground = None
+    if case.fragments is not None:  # the planes fragments rest on, once: they never move
+        from ..rigid.stage import planes
+
+        ground = write_ground(manifest, name, planes(case.fragments), setup.disc.mesh.points)
     series = SeriesWriter(out_dir, name, manifest=manifest)
     with terminated_as_interrupt():
         try:
@@ -222,7 +228,9 @@ def run_case(case: Case, case_path: Path, out_dir: Path, name: str, overwrite: b
     manifest.add(f"{name}_view.py")
     result["output"]["view"] = str(write_paraview_script(
         out_dir, name, view_scale(result["max_displacement"], setup.disc.mesh.points),
-        case.fracture is not None and case.output.crack_surface))
+        case.fracture is not None and case.output.crack_surface, ground=ground is not None))
+    if ground is not None:
+        result["output"]["ground"] = str(ground)
     write_json(out_dir / "summary.json", result)
     _warn_single_pass(case, setup, tally)
     log(f"output     {series.pvd_path}")
