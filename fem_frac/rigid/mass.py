@@ -8,6 +8,9 @@ Closed form, no quadrature: for a tet with vertices ``v_k`` (k = 0..3), volume `
     int rho x x^T dV  = rho V / 20 (sum_k v_k v_k^T + s s^T)
 
 (the last is exact for quadratics: it is the covariance of the uniform measure on a simplex).
+
+:func:`point_mass_properties` gives the same for point masses (a lumped mass matrix's nodal
+masses at the nodes): the inertia that goes with angular momenta taken from that mass.
 """
 
 from __future__ import annotations
@@ -80,7 +83,32 @@ def mass_properties(points, tets, density) -> MassProperties:
     if not mass > 0.0:
         raise ValueError(f"total mass must be positive, got {mass}")
     center = first.sum(axis=0) / mass
-    cov = second.sum(axis=0) - mass * np.outer(center, center)
+    return _about_center(mass, center, second.sum(axis=0) - mass * np.outer(center, center))
+
+
+def point_mass_properties(points, masses) -> MassProperties:
+    """Mass properties of point masses ``masses (k,)`` at ``points (k, 3)``.
+
+    Centre ``X = sum m_a x_a / m``; ``C = sum m_a r_a r_a^T`` with ``r_a = x_a - X`` (taken
+    about the centre directly, no parallel-axis shift), ``J = trace(C) I - C``; moments and
+    axes as in :func:`mass_properties`. With the nodal masses of a lumped (diagonal) mass
+    matrix this is the inertia that mass gives a rigid velocity field ``V + w x r``: its
+    angular momentum ``sum r_a x m_a v_a`` is ``J w`` and its kinetic energy
+    ``1/2 v^T M v = 1/2 m |V|^2 + 1/2 w . J w``, exactly.
+    """
+    x = np.asarray(points, dtype=float)
+    m = np.asarray(masses, dtype=float)
+    mass = float(m.sum())
+    if not mass > 0.0:
+        raise ValueError(f"total mass must be positive, got {mass}")
+    center = (m[:, None] * x).sum(axis=0) / mass
+    r = x - center
+    return _about_center(mass, center, np.einsum("a,ai,aj->ij", m, r, r))
+
+
+def _about_center(mass: float, center: np.ndarray, cov: np.ndarray) -> MassProperties:
+    """Inertia ``trace(C) I - C``, principal moments and axes from the second moment ``C``
+    about the centre."""
     cov = 0.5 * (cov + cov.T)
     inertia = np.trace(cov) * np.eye(3) - cov
     moments, axes = np.linalg.eigh(inertia)

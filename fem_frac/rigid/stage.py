@@ -181,6 +181,8 @@ class RigidStage:
         x = space.node_points[nodes] + u
         positions = (space.node_points + state.u.reshape(-1, 3)).ravel()
         mx = (d.ops.mass @ positions).reshape(-1, 3)[nodes]
+        # the inertia goes with the mass L is taken from: lumped -> the nodal point masses
+        nodal_mass = d.ops.mass.diagonal()[0::3][nodes] if d.ops.lumped else None
         density = d.materials.density
         rho = density if np.ndim(density) == 0 else np.asarray(density)[elements]
         weights = np.zeros_like(d.ops.weights)
@@ -192,4 +194,4 @@ class RigidStage:
             alpha = state.plastic.equivalent_plastic_strain[elements]
             frozen["equivalent_plastic_strain"] = (alpha * dx).sum(axis=1) / dx.sum(axis=1)
         return rigid_piece(points, tets, space.node_points[nodes], cells, x, mv, v, rho,
-                           strain, fragment_id, state.t, frozen, mx)
+                           strain, fragment_id, state.t, frozen, mx, nodal_mass)
