@@ -46,7 +46,9 @@ class RigidFragment:
     ``fragment_id``: its id in the output; ``born``: the time of hand-off;
     ``vibration_energy``: the energy that left with the finite elements; ``kinetic`` and
     ``strain``: the piece's kinetic and strain energy in the finite elements at hand-off;
-    ``resting``: steps it has rested on the ground (see fem_frac.rigid.stage)."""
+    ``resting``: steps it has rested on the ground (see fem_frac.rigid.stage); ``loads``:
+    the surface loads that left the finite elements with it
+    (:class:`~fem_frac.rigid.loads.RigidLoad`)."""
 
     body: RigidBody
     nodes: np.ndarray
@@ -59,6 +61,7 @@ class RigidFragment:
     kinetic: float = 0.0
     strain: float = 0.0
     resting: int = 0
+    loads: tuple = ()
 
     def world(self) -> np.ndarray:
         """World positions ``(k, 3)`` of the nodes."""

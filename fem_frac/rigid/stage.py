@@ -3,12 +3,14 @@ rigid bodies.
 
 Every step, the rigid bodies are moved over the interval by
 :func:`~fem_frac.rigid.contact.step` (gravity exact, torque-free rotation by exact
-principal-axis rotations, ground planes by impulses). Then every piece of the deformable
+principal-axis rotations, ground planes by impulses), between half kicks by the loads that
+left with them (:func:`~fem_frac.rigid.loads.advance`). Then every piece of the deformable
 body that no support holds is a candidate; the ``fragments`` section decides which become
 rigid. Each is handed over (:func:`~fem_frac.rigid.fragment.rigid_piece`: momenta kept
 exactly), its elements leave the finite-element mesh
 (:func:`~fem_frac.fracture.topology.extract`), and the body is discretized once more for all
-pieces of the step. With ``whole_body`` the body is handed over whole at step 0.
+pieces of the step. The tractions and pressures on the piece's nodes go with it
+(:mod:`fem_frac.rigid.loads`). With ``whole_body`` the body is handed over whole at step 0.
 
 Energy: what the pieces carried (kinetic and strain energy) leaves the finite-element ledger
 as ``Ledger.handed_off`` (of which ``Ledger.vibration_removed`` is the motion about the rigid
@@ -30,8 +32,9 @@ from ..world.stage import Step
 from ..world.state import Body, World, body_of
 from ..world.transfer import carry, rediscretize
 from .body import kinetic_energy
-from .contact import Plane, step
+from .contact import Plane
 from .fragment import RigidFragment, rigid_piece
+from .loads import advance, piece_loads
 
 # Steps at rest on the ground after which a rigid body sleeps (see RigidStage.move).
 SLEEP_STEPS = 20
@@ -57,22 +60,27 @@ def planes(config: schema.Fragments) -> tuple[Plane, ...]:
 
 def move(fragments: tuple[RigidFragment, ...], t0: float, t1: float, gravity: np.ndarray,
          obstacles: tuple[Plane, ...], substeps: int) -> tuple[RigidFragment, ...]:
-    """Every rigid body from ``t0`` to ``t1`` in ``substeps`` contact steps.
+    """Every rigid body from ``t0`` to ``t1`` in ``substeps`` contact steps, under gravity and
+    its loads (:func:`~fem_frac.rigid.loads.advance`).
 
     A body that has rested on the ground for ``SLEEP_STEPS`` steps (kinetic energy below
-    what one step of free fall from rest gives it) sleeps: nothing can wake it (no
-    body-body contact, fixed planes, constant gravity), so it is no longer stepped."""
+    what one step of free fall from rest gives it, no load acting) sleeps: only its loads
+    can wake it (no body-body contact, fixed planes, constant gravity), so it is not stepped
+    while their curves are zero at the substeps' ends (all the kicks see)."""
     h = (t1 - t0) / substeps
     quiet = 0.5 * float(gravity @ gravity) * h * h
+    times = [t0 + (t1 - t0) * i / substeps for i in range(substeps)] + [t1]
     moved = []
     for f in fragments:
-        if f.resting >= SLEEP_STEPS:
+        loaded = any(float(load.factor(t)) != 0.0 for load in f.loads for t in times)
+        if f.resting >= SLEEP_STEPS and not loaded:
             moved.append(f)
             continue
         body = f.body
-        for _ in range(substeps):
-            body = step(body, h, gravity, obstacles)
-        resting = obstacles and quiet > 0 and kinetic_energy(body) < quiet * body.mass
+        for t in times[:-1]:
+            body = advance(body, f.loads, t, h, gravity, obstacles)
+        resting = (not loaded and obstacles and quiet > 0
+                   and kinetic_energy(body) < quiet * body.mass)
         moved.append(replace(f, body=body, resting=f.resting + 1 if resting else 0))
     return tuple(moved)
 
@@ -193,5 +201,8 @@ class RigidStage:
             dx = d.ops.weights[elements]
             alpha = state.plastic.equivalent_plastic_strain[elements]
             frozen["equivalent_plastic_strain"] = (alpha * dx).sum(axis=1) / dx.sum(axis=1)
-        return rigid_piece(points, tets, space.node_points[nodes], cells, x, mv, v, rho,
-                           strain, fragment_id, state.t, frozen, mx, nodal_mass)
+        f = rigid_piece(points, tets, space.node_points[nodes], cells, x, mv, v, rho, strain,
+                        fragment_id, state.t, frozen, mx, nodal_mass)
+        # the tractions and pressures on its faces go with it
+        loads = piece_loads(d.problem, nodes, f.body_coords, f.body.orientation)
+        return replace(f, loads=loads) if loads else f

@@ -36,8 +36,10 @@ class Problem:
     """Supports and loads as functions of time.
 
     ``forces[c]`` is the external force ``(n_dofs,)`` that follows curve ``c``;
-    ``reaction_groups`` maps a label (the boundary name, or ``boundary_conditions[i]``) to
-    the dofs whose reaction forces it sums.
+    ``tractions[c]`` and ``pressures[c]`` are its surface loads of each kind (tractions keep
+    their world direction, pressures follow the face: what a rigid piece that takes their
+    faces along needs, fem_frac.rigid.loads); ``reaction_groups`` maps a label (the
+    boundary name, or ``boundary_conditions[i]``) to the dofs whose reaction forces it sums.
     """
 
     space: Space
@@ -47,6 +49,8 @@ class Problem:
     curve_names: list[str] = field(default_factory=list)
     reaction_groups: dict[str, np.ndarray] = field(default_factory=dict)
     descriptions: list[str] = field(default_factory=list)
+    tractions: np.ndarray | None = None  # (n_curves, n_dofs), None: no surface loads
+    pressures: np.ndarray | None = None  # (n_curves, n_dofs)
 
     def factors(self, t: float) -> np.ndarray:
         return np.array([c(t) for c in self.curves] or [0.0])
@@ -110,7 +114,8 @@ def build_problem(
     Where two conditions prescribe the same dof, the later one wins. ``analysis`` sets the
     default curve and the end time of ramps (static when omitted). ``strict``: a selection
     without faces is an error; otherwise (a mesh whose loaded or supported part has left as
-    a rigid piece) the condition acts on nothing.
+    a rigid piece) the condition acts on nothing here (the piece takes the loads on its
+    faces along: fem_frac.rigid.loads).
     """
     from .loading import resolve_curves
 
@@ -119,6 +124,7 @@ def build_problem(
                                              load_curves or {}, analysis)
     exterior = outer_facets(space.mesh)
     forces = np.zeros((len(names), space.n_dofs))
+    surface = {schema.Traction: np.zeros_like(forces), schema.Pressure: np.zeros_like(forces)}
     groups: dict[str, np.ndarray] = {}
     described, supports = [], []
     for i, bc in enumerate(conditions):
@@ -130,7 +136,10 @@ def build_problem(
                 groups[label] = np.zeros(0, dtype=np.int64)
             described.append(f"{bc.type} on {label} (no faces left)")
         elif isinstance(bc, _LOADS):
-            forces[curve_of[i]] += _surface_force(space, bc, facets)
+            load = _surface_force(space, bc, facets)
+            forces[curve_of[i]] += load
+            kind = schema.Pressure if isinstance(bc, schema.Pressure) else schema.Traction
+            surface[kind][curve_of[i]] += load
             described.append(f"{bc.type} on {label} ({len(facets)} faces{timing})")
         else:
             nodes, comps = _supported(space, bc, i, facets)
@@ -141,7 +150,8 @@ def build_problem(
     if body_force is not None:
         forces[curve_of[-1]] += _gravity(space, body_force, density)
         described.append(f"gravity {tuple(body_force.gravity)}, curve {names[curve_of[-1]]}")
-    return Problem(space, _constraints(supports), forces, curves, names, groups, described)
+    return Problem(space, _constraints(supports), forces, curves, names, groups, described,
+                   surface[schema.Traction], surface[schema.Pressure])
 
 
 # conditions that load the surface (the others prescribe displacements)
