@@ -202,7 +202,7 @@ def run_case(case: Case, case_path: Path, out_dir: Path, name: str, overwrite: b
     manifest = Manifest(out_dir)
     if resolved_yaml is not None:
         manifest.add("case.resolved.yaml").write_text(resolved_yaml)
-    manifest.add("summary.json.tmp", "summary.json")
+    manifest.add("summary.json")
     status = RunStatus(out_dir / "summary.json", case_path, setup.grid.steps)
     status.record("running")
     ground = None

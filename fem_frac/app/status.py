@@ -11,7 +11,6 @@ the full summary (``completed``).
 from __future__ import annotations
 
 import json
-import os
 import signal
 import time
 from collections.abc import Iterator
@@ -19,13 +18,13 @@ from contextlib import contextmanager
 from pathlib import Path
 
 from ..errors import Interrupted
+from ..writers.directory import replace_file
 
 
 def write_json(path: Path, data: dict) -> None:
-    """``data`` to ``path`` through a temporary file and a rename (never half written)."""
-    tmp = path.with_name(path.name + ".tmp")
-    tmp.write_text(json.dumps(data, indent=2) + "\n")
-    os.replace(tmp, path)
+    """``data`` to ``path`` through a scratch file and a rename (never half written, never
+    through a link)."""
+    replace_file(path, json.dumps(data, indent=2) + "\n")
 
 
 class RunStatus:
