@@ -27,6 +27,7 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.csgraph import connected_components
 
+from ..mesh.crack import CRACK
 from ..mesh.mesh import (
     TET_EDGES,
     TET_FACES,
@@ -37,8 +38,6 @@ from ..mesh.mesh import (
     facet_keys,
     match,
 )
-
-CRACK = "crack"
 
 
 @dataclass(frozen=True)

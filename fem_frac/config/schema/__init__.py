@@ -34,7 +34,7 @@ from .base import (
     Vector3,
 )
 from .case import UNIT_SYSTEMS, Case, Output, Reference
-from .fracture import Fracture, Fragments, Ground, Perturbation, Protect, Smoothing
+from .fracture import Cohesive, Fracture, Fragments, Ground, Perturbation, Protect, Smoothing
 from .geometry import (
     BoxGeometry,
     CylinderGeometry,
@@ -80,6 +80,7 @@ __all__ = [
     "Equilibrium",
     "FiniteFloat",
     "Fixed",
+    "Cohesive",
     "Fracture",
     "Fragments",
     "Geometry",

@@ -52,6 +52,21 @@ class Protect(Section):
         return self
 
 
+class Cohesive(Section):
+    """The traction-separation law of crack faces that carry a fracture energy.
+
+    ``law``: how the effective traction softens with the effective opening after its peak
+    (``linear`` to zero at ``2 G_c / tensile_strength``, or ``exponential``, truncated where
+    it reaches zero); ``shear_weight`` (beta): the weight of the sliding in the effective
+    opening ``sqrt(<d_n>^2 + beta^2 |d_s|^2)`` (Ortiz & Pandolfi 1999); ``penalty``: the
+    initial stiffness of a new face, ``penalty x E / h`` (h its mean edge length), which
+    also keeps closed faces from passing through each other."""
+
+    law: Literal["linear", "exponential"] = "linear"
+    shear_weight: Annotated[float, Field(gt=0.0, le=100.0)] = 1.0
+    penalty: Annotated[float, Field(ge=1.0, le=1e4)] = 20.0
+
+
 class Fracture(Section):
     """Cracks open where the smoothed largest principal stress exceeds ``tensile_strength``,
     perpendicular to its direction, by separating the mesh along faces (vertices duplicated).
@@ -68,6 +83,23 @@ class Fracture(Section):
     max_insertions_per_step: PositiveInt = 64
     perturbation: Perturbation | None = None
     protect: list[Protect] = []
+    fracture_energy: PositiveFloat | None = Field(
+        default=None, description="G_c, energy per unit crack area (J/m^2): new crack faces "
+        "carry a cohesive traction that dissipates it; absent: faces open traction-free")
+    cohesive: Cohesive | None = None
+
+    @model_validator(mode="after")
+    def _cohesive(self):
+        if self.cohesive is not None and self.fracture_energy is None:
+            raise ValueError("'cohesive' goes with 'fracture_energy' (the law's G_c)")
+        return self
+
+    @property
+    def cohesive_law(self) -> Cohesive | None:
+        """The law of the crack faces (defaults filled in), ``None`` when brittle."""
+        if self.fracture_energy is None:
+            return None
+        return self.cohesive if self.cohesive is not None else Cohesive()
 
 
 class Ground(Section):
