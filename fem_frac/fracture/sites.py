@@ -11,7 +11,13 @@ element's vertices. The rules, all deterministic:
 - the vertex: one whose plane (through it, normal ``n``) really separates its tets; among
   those, vertices already on a crack first (cracks grow rather than nucleate anew), then the
   one whose plane passes closest to the element's centroid; vertices of protected parts
-  never split, and a vertex is split at most once per batch.
+  never split, and a vertex is split at most once per batch;
+- growth along fronts (cohesive cracks, which carry traction while they open and so keep
+  the stress at the strength in their process zone): given the crack front
+  (:func:`~fem_frac.fracture.front.crack_front`), an element near a crack
+  (:func:`~fem_frac.fracture.front.near_crack`) splits only at a front vertex, or not at
+  all, so a crack extends from its own front rather than into a band beside or behind it;
+  front vertices come first, then vertices on a crack, then the nearest plane.
 """
 
 from __future__ import annotations
@@ -22,6 +28,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from ..mesh.mesh import match
+from .front import near_marked
 
 # Candidates tested per vectorized block (in decreasing stress): a batch is usually full
 # long before every element over strength has been looked at.
@@ -152,16 +159,46 @@ def two_sided(points: np.ndarray, centroids: np.ndarray, incidence: sp.csr_matri
     return (n_minus > 0) & (n_minus < degree)
 
 
+def _preference(points: np.ndarray, centroid: np.ndarray, normal: np.ndarray,
+                corners: np.ndarray, on_crack: np.ndarray,
+                front: np.ndarray | None) -> np.ndarray:
+    """The order in which an element's ``corners (4,)`` are tried: front vertices first
+    (when ``front`` is given), then vertices on a crack, then the plane closest to the
+    ``centroid``, then the lower id."""
+    distance = np.abs((points[corners] - centroid) @ normal)
+    keys = (corners, distance, ~on_crack[corners])
+    return np.lexsort(keys if front is None else (*keys, ~front[corners]))
+
+
+def _allowed(points: np.ndarray, centroids: np.ndarray, lookups: Star, corners: np.ndarray,
+             normals: np.ndarray, protected: np.ndarray, front: np.ndarray | None,
+             near: np.ndarray | None) -> np.ndarray:
+    """``(k, 4)`` bool: the (candidate, corner) pairs of ``corners (k, 4)`` whose plane
+    (``normals (k, 3)``) cuts the vertex's tets in two, at an unprotected vertex and, for a
+    candidate ``near`` a crack when a ``front`` is given, at a front vertex. Vectorized over
+    the block; the rest of the rules are :func:`splits` and the batch's bookkeeping."""
+    cut = two_sided(points, centroids, lookups.incidence, corners.ravel(),
+                    np.repeat(normals, 4, axis=0)).reshape(-1, 4)
+    cut &= ~protected[corners]
+    if front is not None:
+        cut &= ~near[:, None] | front[corners]
+    return cut
+
+
 def select_sites(points: np.ndarray, tets: np.ndarray, sigma1: np.ndarray,
                  direction: np.ndarray, strength: float, neighbourhood: sp.csr_matrix,
                  on_crack: np.ndarray, protected: np.ndarray, limit: int,
-                 lookups: Star | None = None) -> Sites:
+                 lookups: Star | None = None, front: np.ndarray | None = None,
+                 near: np.ndarray | None = None) -> Sites:
     """The batch of at most ``limit`` sites (module docstring).
 
     ``points (n, 3)``, ``tets (m, 4)`` reference mesh; ``sigma1 (m,)``, ``direction (m, 3)``
     the smoothed largest principal stress and its unit direction; ``neighbourhood (m, m)``
     the smoothing operator's pattern; ``on_crack``/``protected`` ``(n,)`` bool per vertex;
-    ``lookups`` the :func:`star` of the mesh (made here when not given).
+    ``lookups`` the :func:`star` of the mesh (made here when not given). ``front (n,)``
+    bool per vertex turns on growth along fronts, with ``near (m,)`` bool per tet (the
+    tets near a crack; when not given, those whose neighbourhood holds an ``on_crack``
+    vertex); without ``front``, ``near`` is ignored.
     """
     tets = np.asarray(tets, dtype=np.int64)
     empty = Sites(np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros((0, 3)), np.zeros(0))
@@ -169,6 +206,8 @@ def select_sites(points: np.ndarray, tets: np.ndarray, sigma1: np.ndarray,
     if candidates.size == 0 or limit <= 0:
         return empty
     lookups = lookups if lookups is not None else star(tets, points.shape[0])
+    if front is not None and near is None:
+        near = near_marked(tets, neighbourhood, on_crack)
     centroids = points[tets].mean(axis=1)
     candidates = candidates[np.lexsort((candidates, -sigma1[candidates]))]
     pattern = neighbourhood.tocsr()
@@ -179,19 +218,15 @@ def select_sites(points: np.ndarray, tets: np.ndarray, sigma1: np.ndarray,
     for begin in range(0, candidates.size, chunk):
         block = candidates[begin:begin + chunk]
         block = block[~claimed[block]]
-        # every (candidate, corner) pair whose plane cuts the vertex's tets in two,
-        # vectorized over the block; the rest of the rules run in the loop below
         corners = tets[block]  # (k, 4)
-        cut = two_sided(points, centroids, lookups.incidence, corners.ravel(),
-                        np.repeat(direction[block], 4, axis=0)).reshape(-1, 4)
-        cut &= ~protected[corners]
+        cut = _allowed(points, centroids, lookups, corners, direction[block], protected,
+                       front, None if near is None else near[block])
         for i in np.flatnonzero(cut.any(axis=1)).tolist():
             e = int(block[i])
             if claimed[e]:
                 continue
             n = direction[e]
-            distance = np.abs((points[corners[i]] - centroids[e]) @ n)
-            preference = np.lexsort((corners[i], distance, ~on_crack[corners[i]]))
+            preference = _preference(points, centroids[e], n, corners[i], on_crack, front)
             for j in preference.tolist():
                 v = int(corners[i, j])
                 if (not cut[i, j] or used[v]
