@@ -75,7 +75,7 @@ def check_report(case: Case, source: Source) -> str:
     lines += _selection_lines(case, mesh, space)
     lines += _load_lines(case, space, materials, problem)
     if case.fracture is not None:
-        lines += _fracture_lines(case, mesh)
+        lines += _fracture_lines(case, mesh, materials)
     if isinstance(case.analysis, DynamicAnalysis):
         lines += _time_step_lines(recipe, space, materials, problem)
     lines.append("plan")
@@ -243,8 +243,9 @@ def resolved_yaml(case: Case, source: Source) -> str:
     return "\n".join(header) + "\n" + buffer.getvalue()
 
 
-def _fracture_lines(case: Case, mesh) -> list[str]:
-    """The protected vertices (names and boxes checked here) and the smoothing size."""
+def _fracture_lines(case: Case, mesh, materials) -> list[str]:
+    """The protected vertices (names and boxes checked here) and the smoothing size; with a
+    fracture energy, the cohesive law and how the mesh resolves its length."""
     from ..fracture.smoothing import mean_edge_length
     from ..fracture.stage import protected_vertices
 
@@ -254,8 +255,85 @@ def _fracture_lines(case: Case, mesh) -> list[str]:
     s = f.smoothing
     size = (f"length {s.length:g} = {s.length / edge:.2f} mean edge lengths"
             if s.length is not None else f"{s.rings} ring(s) of neighbours")
-    return ["fracture",
-            f"  tensile strength {f.tensile_strength:g}; smoothing {s.method}, {size} "
-            f"(mean edge {edge:.4g})",
-            f"  {np.count_nonzero(protected):,} of {mesh.n_points:,} vertices protected"]
+    lines = ["fracture",
+             f"  tensile strength {f.tensile_strength:g}; smoothing {s.method}, {size} "
+             f"(mean edge {edge:.4g})",
+             f"  {np.count_nonzero(protected):,} of {mesh.n_points:,} vertices protected"]
+    if f.fracture_energy is not None:
+        lines += _cohesive_lines(case, mesh, materials, protected)
+    return lines
 
+
+# Units of the fracture energy and of lengths, by the case's ``units``.
+_UNITS = {"SI": ("J/m^2", "m"), "mm-N-s": ("N/mm", "mm")}
+
+# The exponential law's truncation, in decay lengths past the peak (fem_frac.cohesive.law.M).
+_EXPONENTIAL_M = 6.0
+
+
+def _element_sizes(mesh) -> np.ndarray:
+    """``(n_tets,)`` mean length of each tet's six edges."""
+    from ..mesh.mesh import TET_EDGES
+
+    x = mesh.points[mesh.tets[:, TET_EDGES]]  # (n_tets, 6, 2, 3)
+    return np.linalg.norm(x[:, :, 1] - x[:, :, 0], axis=2).mean(axis=1)
+
+
+def _critical_opening(law, sigma: float, gc: float, k0: float) -> str:
+    """Where the law's traction reaches zero: 2 G_c / sigma_t (linear), or lambda_0 + M ell
+    with lambda_0 = sigma_t / k0 (exponential, as fem_frac.cohesive.law defines them)."""
+    linear = 2.0 * gc / sigma
+    if law.law == "linear":
+        return f"critical opening 2 G_c / sigma_t = {linear:.4g}"
+    m = _EXPONENTIAL_M
+    c_m = 1.0 - m * np.exp(-m) / -np.expm1(-m)
+    lam0 = sigma / k0
+    ell = (gc - 0.5 * sigma * lam0) / (sigma * c_m)
+    return (f"critical opening lambda_0 + {m:g} ell = {lam0 + m * ell:.4g} for the median "
+            f"k0 {k0:.4g} (2 G_c / sigma_t = {linear:.4g})")
+
+
+def _cohesive_lines(case: Case, mesh, materials, protected: np.ndarray) -> list[str]:
+    """The cohesive law; its length l_cz = E G_c / sigma_t^2 (smallest E of the body) and
+    the size of the elements where cracks can run (no protected vertex) beside it."""
+    f, law = case.fracture, case.fracture.cohesive_law
+    energy_unit, length_unit = _UNITS[case.units]
+    sigma, gc = f.tensile_strength, f.fracture_energy
+    e = np.broadcast_to(np.asarray(materials.youngs_modulus, dtype=float), (mesh.n_tets,))
+    free = ~protected[mesh.tets].any(axis=1)
+    sizes = _element_sizes(mesh)
+    h, e_free = (sizes[free], e[free]) if free.any() else (sizes, e)
+    median, largest = float(np.median(h)), float(h.max())
+    # the median of k0 as the interface sets it (penalty E / h, floored)
+    k0 = max(float(np.median(law.penalty * e_free / h)), 2.0 * sigma**2 / gc)
+    uniform = bool(np.all(e == e[0]))
+    lcz = float(e.min()) * gc / sigma**2
+    lines = [f"  cohesive   {law.law} law, G_c = {gc:.4g} {energy_unit}, "
+             f"{_critical_opening(law, sigma, gc, k0)}, shear weight {law.shear_weight:g}, "
+             f"initial stiffness {law.penalty:g} x E / h",
+             f"  cohesive length l_cz = E G_c / sigma_t^2 = {lcz:.4g} {length_unit}"
+             + ("" if uniform else " (with the smallest E of the regions)")]
+    if not free.any():
+        return lines + ["  no element without a protected vertex: no crack can run"]
+    lines.append(f"  where cracks can run ({np.count_nonzero(free):,} elements with no "
+                 f"protected vertex): element size median {median:.4g}, max {largest:.4g} "
+                 f"{length_unit}; l_cz / h = {lcz / median:.3g} and {lcz / largest:.3g}")
+    # each material apart, by its own E (one group when the body is uniform)
+    worst = None
+    for value in np.unique(e_free):
+        mine = h[e_free == value]
+        own, size = value * gc / sigma**2, float(np.median(mine))
+        if not uniform:
+            lines.append(f"  E {value:.4g}: l_cz {own:.4g} {length_unit}, {len(mine):,} "
+                         f"elements, size median {size:.4g}, l_cz / h = {own / size:.3g}")
+        if worst is None or own / size < worst[0] / worst[1]:
+            worst = own, size, value
+    own, size, value = worst
+    if size > own / 2.0:
+        which = "" if uniform else f", E {value:.4g}"
+        lines.append(f"  warning: the mesh cannot resolve the cohesive zone (median element "
+                     f"size {size:.4g} > l_cz / 2 = {own / 2:.4g} {length_unit}{which}): the "
+                     f"peak load and the crack path will depend on the mesh; use elements of "
+                     f"size <= {own / 2:.4g} (l_cz / 2), better {own / 4:.4g} (l_cz / 4), "
+                     f"where cracks run")
+    return lines
