@@ -6,7 +6,8 @@ Layers, bottom to top (docs/architecture.md draws them):
 
 0. ``errors``, ``timing``, ``config``: exceptions, wall clocks, the validated case
 1. ``mesh``, ``fem``, ``verify``: meshes, spaces and operators, closed-form solutions
-2. ``writers``, ``plasticity``: output fields and files, the material law
+2. ``writers``, ``plasticity``, ``cohesive``: output fields and files, the material laws of
+   the bulk and of cohesive crack faces
 3. ``solve``: supports and loads, steppers, the energy ledger, discretizations
 4. ``fracture`` and ``rigid`` (their physics: topology, smoothing, sites, rigid motion)
 5. ``world``: the World, the stage protocol and the step loop, carrying state over
@@ -24,7 +25,7 @@ PACKAGE = Path(__file__).resolve().parents[1] / "fem_frac"
 LAYERS = [
     ("errors", 0), ("timing", 0), ("config", 0),
     ("mesh", 1), ("fem", 1), ("verify", 1),
-    ("writers", 2), ("plasticity", 2),
+    ("writers", 2), ("plasticity", 2), ("cohesive", 2),
     ("solve", 3),
     ("fracture", 4), ("rigid", 4),
     ("world", 5),

@@ -11,6 +11,8 @@ from pathlib import Path
 
 import numpy as np
 
+from ..cohesive.interface import InterfaceRecipe
+from ..cohesive.law import TractionSeparation
 from ..config.schema import Case, DynamicAnalysis, StaticAnalysis
 from ..errors import CaseError, Interrupted, SolverError
 from ..mesh.build import build_mesh
@@ -52,7 +54,18 @@ def recipe_of(case: Case, dt: float) -> Recipe:
     """The sections of ``case`` that say how to discretize a mesh."""
     return Recipe(case.mesh.order, case.mesh.formulation, case.material, tuple(case.regions),
                   case.plasticity, tuple(case.boundary_conditions), case.body_force,
-                  case.load_curves, case.analysis, dt)
+                  case.load_curves, case.analysis, dt, interface_recipe(case.fracture))
+
+
+def interface_recipe(fracture) -> InterfaceRecipe | None:
+    """The cohesive faces' law of a ``fracture`` section, ``None`` when cracks are
+    traction-free."""
+    law = fracture.cohesive_law if fracture is not None else None
+    if law is None:
+        return None
+    return InterfaceRecipe(TractionSeparation(law.law, fracture.tensile_strength,
+                                              fracture.fracture_energy, law.shear_weight),
+                           law.penalty)
 
 
 def check_stages(case: Case) -> None:

@@ -9,6 +9,11 @@ refactorized once per batch), carry the state at the start of the step over to i
 committed is the last re-solve. Without inertia the energy the crack releases has nowhere
 to go and is booked as ``Ledger.fracture``.
 
+With a fracture energy the new faces are cohesive (:mod:`fem_frac.cohesive`): they hold
+their sides together until the law has dissipated ``G_c`` per unit area, so an insertion
+never cuts a piece off (no debris check), and pieces come apart when the last face between
+them breaks, which the stage finds after every step.
+
 The stage publishes the smoothed largest principal stress of the committed state as the
 body's field ``smoothed_max_principal_stress``; its caches (smoothing operator, protected
 vertices, refused sites) belong to one mesh and are rebuilt for any other.
@@ -34,6 +39,7 @@ from ..world.stage import Step
 from ..world.state import Body, World, body_of
 from ..world.transfer import carry, rediscretize
 from ..writers.fields import cell_average
+from .front import crack_front, near_crack
 from .sites import Sites, select_sites, star, tilt
 from .smoothing import principal_stress, smooth, smoothing_operator, update_operator
 from .topology import CRACK, fragments, open_crack
@@ -112,6 +118,8 @@ class _Topology:
     debris_volume: float
     on_crack: np.ndarray
     refused: np.ndarray
+    front: np.ndarray | None = None  # cohesive cracks: vertices of their fronts
+    near: np.ndarray | None = None  # and the tets whose neighbourhood reaches a crack
     principal: tuple | None = None  # (stress array, (sigma1, direction)) last asked about
 
 
@@ -122,10 +130,14 @@ def _topology(config: schema.Fracture, mesh: Mesh, smoothing, strict: bool) -> _
     pattern.data[:] = 1.0
     on_crack = np.zeros(mesh.n_points, dtype=bool)
     on_crack[np.asarray(mesh.boundaries.get(CRACK, np.zeros((0, 3), int))).ravel()] = True
+    front = near = None
+    if config.fracture_energy is not None:
+        # cohesive cracks grow from their fronts (fem_frac.fracture.sites)
+        front, near = crack_front(mesh), near_crack(mesh, pattern)
     return _Topology(mesh, smoothing, protected_vertices(config, mesh, strict),
                      star(mesh.tets, mesh.n_points), volumes,
                      float(np.median(pattern @ volumes)), on_crack,
-                     np.zeros(mesh.n_points, dtype=bool))
+                     np.zeros(mesh.n_points, dtype=bool), front, near)
 
 
 class FractureStage:
@@ -149,6 +161,7 @@ class FractureStage:
         topo = self._caches(body.mesh)
         if step.initial:
             return replace(world, body=self._published(body, topo)), None
+        body = self._separated(body, step.n)
         end, ledger, event = self._insert(step, body, world.ledger, topo)
         if event.batches and not self.inertia:
             # the re-solved step's imbalance beyond the regular step's is the released
@@ -198,6 +211,18 @@ class FractureStage:
             passes += 1
         return body, ledger, FractureEvent(tuple(batches), passes, resolve)
 
+    def _separated(self, body: Body, n: int) -> Body:
+        """The body with its pieces counted again when cohesive faces have broken (pieces
+        hold together through the faces that still carry traction)."""
+        if body.disc.ops.interface is None or body.state.cohesive is None:
+            return body
+        new = body_of(body.disc, body.state, body.fields)
+        if new.n_pieces == body.n_pieces:
+            return body
+        if not self.inertia:
+            _check_supports(new, n)
+        return new
+
     # -- caches ----------------------------------------------------------------------------
 
     def _caches(self, mesh: Mesh) -> _Topology:
@@ -246,7 +271,8 @@ class FractureStage:
             direction = tilt(direction, np.radians(p.angle), rng)
         return select_sites(mesh.points, mesh.tets, sigma1, direction,
                             self.config.tensile_strength, topo.smoothing, topo.on_crack,
-                            topo.protected | topo.refused, limit, topo.star)
+                            topo.protected | topo.refused, limit, topo.star,
+                            front=topo.front, near=topo.near)
 
     def open(self, topo: _Topology, n_pieces: int, sites: Sites):
         """Open ``sites`` on ``topo.mesh``: ``(sites kept, new mesh, transfer, dropped
@@ -260,6 +286,9 @@ class FractureStage:
             if transfer.n_new_points == mesh.n_points:
                 dropped.extend(sites.vertices.tolist())
                 break
+            if self.config.fracture_energy is not None:
+                # new cohesive faces hold: nothing comes off (pieces counted on the state)
+                return sites, new, transfer, np.array(dropped, dtype=np.int64), None
             count, labels = fragments(new.tets)
             volume = np.bincount(labels, weights=topo.volumes, minlength=count)
             debris = np.flatnonzero(volume < topo.debris_volume)

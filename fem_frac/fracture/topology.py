@@ -119,12 +119,20 @@ def face_adjacency(tets: np.ndarray) -> sp.csr_matrix:
     return adj
 
 
-def fragments(tets: np.ndarray) -> tuple[int, np.ndarray]:
+def fragments(tets: np.ndarray, links: np.ndarray | None = None) -> tuple[int, np.ndarray]:
     """Connected components over face adjacency: ``(n_fragments, labels (m,))``.
 
-    Two tets touching only at a vertex or along an edge are in different fragments.
+    Two tets touching only at a vertex or along an edge are in different fragments;
+    ``links (j, 2)``: further tet pairs held together (across cohesive crack faces that
+    still carry traction).
     """
-    n, labels = connected_components(face_adjacency(tets), directed=False)
+    adjacency = face_adjacency(tets)
+    if links is not None and len(links):
+        m = adjacency.shape[0]
+        extra = sp.coo_matrix((np.ones(len(links), dtype=np.int8),
+                               (links[:, 0], links[:, 1])), shape=(m, m))
+        adjacency = adjacency + extra + extra.T
+    n, labels = connected_components(adjacency, directed=False)
     return int(n), labels.astype(np.int64)
 
 

@@ -12,6 +12,7 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.sparse as sp
 
+from ..cohesive.interface import InterfaceRecipe, build_interface
 from ..config import schema
 from ..errors import CaseError
 from ..fem.space import Space, build_space
@@ -47,6 +48,7 @@ class Recipe:
     load_curves: dict
     analysis: schema.StaticAnalysis | schema.QuasiStaticAnalysis | schema.DynamicAnalysis
     dt: float
+    cohesive: InterfaceRecipe | None = None  # crack faces with a fracture energy
 
     @property
     def dynamic(self) -> bool:
@@ -91,7 +93,8 @@ def discretize(recipe: Recipe, mesh: Mesh, timer: StageTimer, strict: bool = Tru
     if recipe.explicit:
         with timer("time step"):
             limit = stable_limit(space, ops.stiffness, ops.mass.diagonal(), constrained.free,
-                                 materials, recipe.analysis.rayleigh)
+                                 materials, recipe.analysis.rayleigh,
+                                 _initial_cohesive_stiffness(ops))
         substeps = explicit_substeps(limit, recipe.dt, recipe.analysis.substeps)
         log(f"time step  dt {recipe.dt:.4g}, stable limit {limit.dt:.4g} ({limit.method})"
             + (f", {substeps} substeps per step" if substeps > 1 else ""))
@@ -101,6 +104,16 @@ def discretize(recipe: Recipe, mesh: Mesh, timer: StageTimer, strict: bool = Tru
                                   recipe.analysis.equilibrium, constrained)
     return Discretization(recipe, mesh, space, problem, materials, law, ops, constrained,
                           stepper, limit)
+
+
+def _initial_cohesive_stiffness(ops: Operators) -> sp.csr_matrix | None:
+    """The stiffness of the cohesive faces undamaged and closed: the largest they have."""
+    interface = ops.interface
+    if interface is None:
+        return None
+    response, _ = interface.respond(np.zeros(interface.jump.shape[1]),
+                                    interface.initial_state().kappa)
+    return interface.matrix(response.secant)
 
 
 def model_on(recipe: Recipe, mesh: Mesh, timer: StageTimer,
@@ -136,7 +149,7 @@ def check_model(recipe: Recipe, space: Space, materials: ElementMaterials,
 def build_operators(recipe: Recipe, space: Space, materials: ElementMaterials,
                     law: MaterialLaw, timer: StageTimer) -> Operators:
     """Strain operator and elastic stiffness; mass and damping when the analysis is
-    dynamic."""
+    dynamic; the cohesive crack faces when cracks carry a fracture energy."""
     from ..fem.operators import strain_operator
 
     with timer("assemble"):
@@ -158,7 +171,12 @@ def build_operators(recipe: Recipe, space: Space, materials: ElementMaterials,
             if analysis.rayleigh is not None:
                 r = analysis.rayleigh
                 damping = (r.mass * mass + r.stiffness * k).tocsr()
-    return Operators(op, k, mass, damping)
+    interface = None
+    if recipe.cohesive is not None:
+        with timer("cohesive faces"):
+            interface = build_interface(recipe.cohesive, space.mesh, space,
+                                        materials.youngs_modulus)
+    return Operators(op, k, mass, damping, interface)
 
 
 def scheme(analysis, dt: float) -> integrators.Implicit:

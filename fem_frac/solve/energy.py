@@ -2,7 +2,11 @@
 
 Trapezoidal work of every force, reactions included, makes the balance
 
-    kinetic + elastic + plastic work + damping work - external work = initial energy
+    kinetic + elastic + plastic work + damping work + cohesive work - external work
+        = initial energy
+
+(the cohesive work is the trapezoidal work of the crack faces' tractions on their jumps,
+the energy they store plus the energy they dissipate)
 
 exact for Newmark average acceleration at converged equilibrium (any material), and a
 measure of numerical dissipation for HHT and of O(dt^2) error for central difference.
@@ -36,13 +40,19 @@ class Ledger:
     handed_off: float = 0.0
     # of which the energy of their motion about the rigid motion (vibration and strain)
     vibration_removed: float = 0.0
+    # cohesive crack faces: the work of their tractions (trapezoidal, from t = 0), and at the
+    # current step the energy they store and the energy their law has dissipated
+    cohesive_work: float = 0.0
+    cohesive_stored: float = 0.0
+    cohesive_dissipated: float = 0.0
 
     @property
     def error(self) -> float:
-        """kinetic + elastic + plastic work + damping work + fracture + handed off -
-        external work - initial."""
+        """kinetic + elastic + plastic work + damping work + cohesive work + fracture +
+        handed off - external work - initial."""
         return (self.kinetic + self.elastic + self.plastic_work + self.damping_work
-                + self.fracture + self.handed_off - self.external_work - self.initial)
+                + self.cohesive_work + self.fracture + self.handed_off
+                - self.external_work - self.initial)
 
     @property
     def relative_error(self) -> float:
@@ -57,8 +67,19 @@ class Ledger:
 def initial_ledger(state: State, law, ops: Operators) -> Ledger:
     kinetic = 0.5 * state.v @ (ops.mass @ state.v) if ops.mass is not None else 0.0
     elastic = law.elastic_energy(state.stress, ops.weights)
-    total = kinetic + elastic
-    return Ledger(kinetic=kinetic, elastic=elastic, initial=total, scale=abs(total))
+    stored = state.cohesive.stored if state.cohesive is not None else 0.0
+    total = kinetic + elastic + stored
+    return Ledger(kinetic=kinetic, elastic=elastic, initial=total, scale=abs(total),
+                  cohesive_stored=stored)
+
+
+def cohesive_work(old: State, new: State, ops: Operators) -> float:
+    """Trapezoidal work of the cohesive tractions on the jumps of the step ``old -> new``."""
+    if new.cohesive is None or old.cohesive is None or ops.interface is None:
+        return 0.0
+    a, b = old.cohesive, new.cohesive
+    return 0.5 * float(ops.interface.weights
+                       @ np.einsum("pi,pi->p", a.traction + b.traction, b.jump - a.jump))
 
 
 def _full_force(problem, t: float, reaction: np.ndarray) -> np.ndarray:
@@ -84,8 +105,12 @@ def account(ledger: Ledger, old: State, new: State, problem, law, ops: Operators
     kinetic = 0.5 * new.v @ (ops.mass @ new.v) if ops.mass is not None else 0.0
     elastic = law.elastic_energy(new.stress, ops.weights)
     hardening = law.hardening_energy(new.plastic, ops.weights)
-    stored = kinetic + elastic + plastic_work + abs(damping)
+    cohesive = ledger.cohesive_work + cohesive_work(old, new, ops)
+    faces = new.cohesive
+    stored = kinetic + elastic + plastic_work + abs(damping) + abs(cohesive)
     scale = max(ledger.scale, stored, abs(external))
     return Ledger(kinetic, elastic, hardening, plastic_work, damping, external,
                   ledger.initial, scale, ledger.fracture, ledger.handed_off,
-                  ledger.vibration_removed)
+                  ledger.vibration_removed, cohesive,
+                  faces.stored if faces is not None else 0.0,
+                  faces.dissipated if faces is not None else 0.0)

@@ -46,7 +46,10 @@ def highest_frequency(stiffness: sp.csr_matrix, lumped: np.ndarray, free: np.nda
 
 
 def explicit_limit(space, stiffness, lumped, free, youngs_modulus, poissons_ratio, density,
-                   mass_damping=0.0, stiffness_damping=0.0) -> ExplicitLimit:
+                   mass_damping=0.0, stiffness_damping=0.0, extra=None) -> ExplicitLimit:
+    """``extra``: a further stiffness (cohesive crack faces), added to the assembled one
+    for Lanczos and to the element bound through Gershgorin's bound on ``M^-1 extra``
+    (``lambda_max(A + B) <= lambda_max(A) + lambda_max(B)``)."""
     from ..fem.mass import element_frequencies
 
     if np.ndim(youngs_modulus) == 0 and np.ndim(density) == 0:
@@ -59,6 +62,10 @@ def explicit_limit(space, stiffness, lumped, free, youngs_modulus, poissons_rati
         nus = np.unique(np.broadcast_to(poissons_ratio, np.shape(space.mesh.tets)[:1]))
         unit = np.max([element_frequencies(space, 1.0, float(nu), 1.0) for nu in nus], axis=0)
         bound = float(np.max(unit * np.sqrt(np.asarray(youngs_modulus) / np.asarray(density))))
+    if extra is not None:
+        rows = np.asarray(abs(extra).sum(axis=1)).ravel()[free] / lumped[free]
+        bound = float(np.sqrt(bound**2 + (rows.max() if rows.size else 0.0)))
+        stiffness = stiffness + extra
     bound_dt = central_difference_limit(bound, mass_damping, stiffness_damping)
     omega = highest_frequency(stiffness, lumped, free)
     if not np.isfinite(omega) or omega <= 0.0 or omega > bound * (1 + 1e-9):
@@ -69,11 +76,11 @@ def explicit_limit(space, stiffness, lumped, free, youngs_modulus, poissons_rati
 
 
 def stable_limit(space, stiffness, lumped: np.ndarray, free: np.ndarray, materials,
-                 rayleigh=None) -> ExplicitLimit:
+                 rayleigh=None, extra=None) -> ExplicitLimit:
     """The stable step of a discretization: ``materials`` holds ``youngs_modulus``,
     ``poissons_ratio`` and ``density`` (scalars or per element), ``rayleigh`` the
-    ``analysis.rayleigh`` section or ``None``."""
+    ``analysis.rayleigh`` section or ``None``, ``extra`` the cohesive faces' stiffness."""
     return explicit_limit(space, stiffness, lumped, free, materials.youngs_modulus,
                           materials.poissons_ratio, materials.density,
                           rayleigh.mass if rayleigh else 0.0,
-                          rayleigh.stiffness if rayleigh else 0.0)
+                          rayleigh.stiffness if rayleigh else 0.0, extra)

@@ -13,6 +13,7 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.sparse as sp
 
+from ..cohesive.interface import CohesiveState, Interface
 from ..errors import SolverError
 from ..plasticity.return_map import PlasticState
 
@@ -21,12 +22,14 @@ from ..plasticity.return_map import PlasticState
 class Operators:
     """What one topology provides: the strain operator (``strain``, ``internal_force``,
     ``stiffness``), the elastic stiffness, and the mass and damping matrices when there is
-    inertia (``mass`` a sparse matrix, consistent or diagonal)."""
+    inertia (``mass`` a sparse matrix, consistent or diagonal); the cohesive crack faces
+    (``interface``) when cracks carry a fracture energy."""
 
     strain_operator: object
     stiffness: sp.csr_matrix
     mass: sp.csr_matrix | None = None
     damping: sp.csr_matrix | None = None
+    interface: Interface | None = None
 
     @property
     def weights(self) -> np.ndarray:
@@ -43,7 +46,8 @@ class Operators:
 class State:
     """Committed state at time ``t``. Vectors are ``(n_dofs,)``; ``stress`` Mandel
     ``(6, n_tets, n_qp)``; ``reaction`` is the support force on the constrained dofs
-    ``(k,)``."""
+    ``(k,)``; ``internal_force`` includes the cohesive faces' forces, whose state is
+    ``cohesive`` (``None`` without cohesive faces)."""
 
     t: float
     u: np.ndarray
@@ -53,6 +57,7 @@ class State:
     plastic: PlasticState | None
     internal_force: np.ndarray
     reaction: np.ndarray
+    cohesive: CohesiveState | None = None
 
 
 @dataclass(frozen=True)
@@ -72,6 +77,17 @@ class StepInfo:
                         self.solves + later.solves,
                         self.factorizations + later.factorizations,
                         self.cutbacks + later.cutbacks)
+
+
+def cohesive_force(ops: Operators, u: np.ndarray, previous: CohesiveState | None):
+    """The cohesive faces at ``u`` from the history of ``previous`` (fresh faces when
+    ``None``): ``(nodal force (n_dofs,) or 0.0, law response or None, state or None)``."""
+    interface = ops.interface
+    if interface is None:
+        return 0.0, None, None
+    kappa = previous.kappa if previous is not None else interface.initial_state().kappa
+    response, state = interface.respond(u, kappa)
+    return interface.force(response.traction), response, state
 
 
 def inertial_force(ops: Operators, v: np.ndarray, a: np.ndarray) -> np.ndarray | float:
@@ -129,14 +145,15 @@ def initial_state(problem, law, ops: Operators, v0: np.ndarray | None,
     u[constrained.dofs] = problem.prescribed(0.0)
     strain = ops.strain_operator.strain(u)
     stress, plastic, _ = law.update(strain, law.initial_state(ops.weights.shape))
-    f_int = ops.strain_operator.internal_force(stress)
+    f_coh, _, cohesive = cohesive_force(ops, u, None)
+    f_int = ops.strain_operator.internal_force(stress) + f_coh
     v = np.zeros(n) if v0 is None else v0.copy()
     v[constrained.dofs] = 0.0  # supports start at rest
     a = np.zeros(n)
     f_ext = problem.external_force(0.0)
     if ops.mass is None:
         return State(0.0, u, v, a, stress, plastic, f_int,
-                     reaction(ops, constrained.dofs, f_int, f_ext))
+                     reaction(ops, constrained.dofs, f_int, f_ext), cohesive)
     a = balanced_acceleration(ops, constrained, f_int, f_ext, v, a)
     return State(0.0, u, v, a, stress, plastic, f_int,
-                 reaction(ops, constrained.dofs, f_int, f_ext, v, a))
+                 reaction(ops, constrained.dofs, f_int, f_ext, v, a), cohesive)

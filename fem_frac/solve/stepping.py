@@ -20,7 +20,7 @@ from ..errors import SolverError
 from .energy import Ledger, account
 from .integrators import Implicit
 from .linalg import Refactorizer
-from .state import Operators, State, StepInfo, check_finite, reaction
+from .state import Operators, State, StepInfo, check_finite, cohesive_force, reaction
 
 
 class NotConverged(SolverError):
@@ -29,6 +29,8 @@ class NotConverged(SolverError):
 
 # A correction below this fraction of the displacement is round-off (a few hundred ulps).
 ROUND_OFF = 1e-13
+# Halvings of a full Newton correction tried before falling back on the secant stiffness.
+LINE_SEARCH_HALVINGS = 4
 # Past corrections Anderson mixing keeps (Walker & Ni 2011 use 1 to 10; 5 is a common choice).
 ANDERSON_DEPTH = 5
 
@@ -86,6 +88,11 @@ class _Iterate:
     correction: np.ndarray | None = None
     solves: int = 0
     factorizations: int = 0
+    cohesive: object = None  # the cohesive faces' state at the iterate
+    cohesive_tangent: np.ndarray | None = None
+    cohesive_secant: np.ndarray | None = None
+    secant: bool = False  # full Newton fell back on the faces' secant stiffness
+    frozen: bool = False  # and iterates on with that factorization (Anderson-accelerated)
 
 
 @dataclass(frozen=True, eq=False)
@@ -105,7 +112,14 @@ class ImplicitStepper:
     """Steps of the implicit form (static, quasi-static, Newmark, HHT-alpha).
 
     ``modified_newton`` and ``single_pass`` solve with the elastic Jacobian factorized here,
-    once; ``newton`` refactorizes the consistent tangent every iteration.
+    once; ``newton`` refactorizes the consistent tangent every iteration. With cohesive
+    crack faces the iteration matrix of the first two also holds the faces' secant
+    stiffness at the start of the step (never negative: the iteration contracts while the
+    structure is stable), refactorized when damage has changed it. Full Newton iterates
+    with the faces' consistent tangent and a backtracking line search (the law's kinks, at
+    the peak and from loading to unloading, make full steps cycle); where even the shortest
+    step fails to reduce the residual, the step goes on as modified Newton with the secant
+    stiffness of that iterate, factorized once, and Anderson acceleration.
     """
 
     def __init__(self, problem, law, ops: Operators, scheme: Implicit,
@@ -123,6 +137,7 @@ class ImplicitStepper:
         self.fixed_columns = ops.stiffness.tocsc()[:, constrained.dofs].tocsr()
         self.factor = None  # elastic Jacobian's factorization, made on first use
         self.tangents = None  # full Newton's refactorizer, made on first use
+        self.secant = None  # the cohesive secant stiffness ``self.factor`` holds
 
     def jacobian(self, stiffness: sp.csr_matrix) -> sp.csr_matrix:
         s, ops = self.scheme, self.ops
@@ -139,11 +154,26 @@ class ImplicitStepper:
             self.factor = self.constrained.factorize(self.elastic_jacobian)
         return self.factor
 
+    def iteration_factor(self, old: State):
+        """The factorization modified Newton iterates with from ``old``: the elastic
+        Jacobian, plus the cohesive faces' secant stiffness at ``old``; ``(factor, made)``."""
+        interface = self.ops.interface
+        if interface is None:
+            made = self.factor is None
+            return self.elastic_factor(), made
+        response, _ = interface.respond(old.u, old.cohesive.kappa)
+        secant = response.secant
+        if self.factor is not None and np.allclose(secant, self.secant, rtol=1e-12,
+                                                   atol=0.0):
+            return self.factor, False
+        self.secant = secant
+        self.factor = self.constrained.factorize(
+            self.jacobian(self.ops.stiffness + interface.matrix(secant)))
+        return self.factor, True
+
     def step(self, old: State, t: float, step: int) -> tuple[State, StepInfo]:
         target = self._target(old, t, step)
-        made = self.factor is None
         it = self._first_iterate(old, t)
-        it.factorizations += made
         method = self.equilibrium.method
         accelerate = None
         if method == "modified_newton" and self.equilibrium.acceleration == "anderson":
@@ -155,15 +185,46 @@ class ImplicitStepper:
             it.correction = it.factor.solve(residual[self.constrained.free])
             it.solves += 1
             free = self.constrained.free
+            if accelerate is None and it.secant:
+                accelerate = Anderson(ANDERSON_DEPTH)
             if accelerate is not None:
                 it.correction = accelerate(it.u[free], it.correction)
-            it.u[free] += it.correction
-            strain = self.ops.strain_operator.strain(it.u)
-            it.stress, it.plastic, it.tangent = self.law.update(
-                strain, old.plastic, tangent=(method == "newton"))
-            it.f_int = self.ops.strain_operator.internal_force(it.stress)
+            if self.ops.interface is not None and method == "newton" and not it.secant:
+                self._search(it, old, target)
+            else:
+                it.u[free] += it.correction
+                self._update(it, old)
             it.iterations += 1
         return self._commit(it, old, target, t)
+
+    def _update(self, it: _Iterate, old: State) -> None:
+        """The material's response at the iterate's displacement: stresses, plastic state,
+        internal force (cohesive faces included) and, for full Newton, the tangents."""
+        strain = self.ops.strain_operator.strain(it.u)
+        it.stress, it.plastic, it.tangent = self.law.update(
+            strain, old.plastic, tangent=(self.equilibrium.method == "newton"))
+        it.f_int = self.ops.strain_operator.internal_force(it.stress)
+        if self.ops.interface is not None:
+            f_coh, response, it.cohesive = cohesive_force(self.ops, it.u, old.cohesive)
+            it.f_int = it.f_int + f_coh
+            it.cohesive_tangent, it.cohesive_secant = response.tangent, response.secant
+
+    def _search(self, it: _Iterate, old: State, target: _Target) -> None:
+        """Full Newton with cohesive faces: the correction, halved up to
+        ``LINE_SEARCH_HALVINGS`` times until the residual decreases (the law's kinks make a
+        full step overshoot); without a decrease the smallest step is taken and the step goes
+        on with the faces' secant stiffness (:meth:`step`)."""
+        free = self.constrained.free
+        base, correction = it.u[free].copy(), it.correction
+        before = _norm(self._residual(it, old, target)[0][free]) if it.iterations else np.inf
+        for k in range(LINE_SEARCH_HALVINGS + 1):
+            it.u[free] = base + 0.5**k * correction
+            self._update(it, old)
+            if _norm(self._residual(it, old, target)[0][free]) < before:
+                break
+        else:
+            it.secant = True
+        it.correction = it.u[free] - base
 
     def _target(self, old: State, t: float, step: int) -> _Target:
         alpha, s = self.scheme.alpha, self.scheme
@@ -190,8 +251,10 @@ class ImplicitStepper:
         f_int = old.internal_force
         if np.any(moved):
             f_int = f_int + self.fixed_columns @ moved
-        return _Iterate(u, f_int, old.stress, old.plastic, self.elastic_factor(),
-                        correction=np.zeros(len(self.constrained.free)))
+        factor, made = self.iteration_factor(old)
+        return _Iterate(u, f_int, old.stress, old.plastic, factor,
+                        correction=np.zeros(len(self.constrained.free)),
+                        factorizations=int(made), cohesive=old.cohesive)
 
     def _rates(self, u: np.ndarray, old: State, target: _Target):
         if self.inertia:
@@ -237,17 +300,24 @@ class ImplicitStepper:
                 f"tolerance {self.equilibrium.tolerance:g}); take smaller steps"
                 + (", or use analysis.equilibrium.method: newton"
                    if method != "newton" else ""))
-        if method == "newton" and self.law.plastic:
+        if method == "newton" and (self.law.plastic or self.ops.interface is not None) \
+                and not it.frozen:
             self._refactorize(it, t, step)
         return False
 
     def _refactorize(self, it: _Iterate, t: float, step: int) -> None:
-        """Full Newton: factorize the consistent tangent of the iterate."""
+        """Full Newton: factorize the consistent tangent of the iterate (bulk and cohesive
+        faces)."""
         if self.tangents is None:
             self.tangents = Refactorizer(self.constrained.method)
+        stiffness = self.ops.stiffness if it.tangent is None else \
+            self.ops.strain_operator.stiffness(it.tangent)
+        if it.cohesive_tangent is not None:
+            faces = it.cohesive_secant if it.secant else it.cohesive_tangent
+            it.frozen = it.secant
+            stiffness = stiffness + self.ops.interface.matrix(faces)
         try:
-            it.factor = self.constrained.factorize(
-                self.jacobian(self.ops.strain_operator.stiffness(it.tangent)), self.tangents)
+            it.factor = self.constrained.factorize(self.jacobian(stiffness), self.tangents)
         except SolverError:
             raise NotConverged(
                 f"step {step} (t = {t:.6g}): the consistent tangent became singular after "
@@ -264,7 +334,7 @@ class ImplicitStepper:
         else:
             v, a = np.zeros_like(u), np.zeros_like(u)
             r = reaction(self.ops, self.constrained.dofs, it.f_int, target.load)
-        new = State(t, u, v, a, it.stress, it.plastic, it.f_int, r)
+        new = State(t, u, v, a, it.stress, it.plastic, it.f_int, r, it.cohesive)
         return new, StepInfo(it.iterations, it.relative, it.solves, it.factorizations)
 
 
@@ -304,7 +374,8 @@ class ExplicitStepper:
         check_finite(u, step, "explicit update", "displacement")
         stress, plastic, _ = law.update(ops.strain_operator.strain(u), old.plastic)
         check_finite(stress, step, "return map", "stress")
-        f_int = ops.strain_operator.internal_force(stress)
+        f_coh, _, cohesive = cohesive_force(ops, u, old.cohesive)
+        f_int = ops.strain_operator.internal_force(stress) + f_coh
         damping = ops.damping @ v_half if ops.damping is not None else 0.0
         load = problem.external_force(t)
         check_finite(load, step, "loads", "external force")
@@ -312,7 +383,8 @@ class ExplicitStepper:
         a = force * self.inverse_mass
         a[fixed] = 0.0
         v = v_half + 0.5 * h * a
-        return State(t, u, v, a, stress, plastic, f_int, -force[fixed]), StepInfo(1, 0.0)
+        return (State(t, u, v, a, stress, plastic, f_int, -force[fixed], cohesive),
+                StepInfo(1, 0.0))
 
 
 Stepper = ImplicitStepper | ExplicitStepper

@@ -25,8 +25,9 @@ from ..solve.state import State
 class Body:
     """The deformable part: a discretization and its committed state.
 
-    ``labels (n_tets,)``: the piece (connected component over shared faces) of every
-    element, ``n_pieces`` their count; ``crack``: the crack faces and area of the mesh;
+    ``labels (n_tets,)``: the piece (connected component over shared faces, and over
+    cohesive crack faces that still hold) of every element, ``n_pieces`` their count;
+    ``crack``: the crack faces and area of the mesh;
     ``fields``: element fields ``(n_tets,)`` that stages publish for the output (the smoothed
     largest principal stress of the fracture criterion), carried through topology changes
     element by element.
@@ -58,7 +59,11 @@ def body_of(disc: Discretization, state: State, fields: dict | None = None,
     """A body on a (new) discretization: its pieces (``pieces``: ``(count, labels)`` when
     already known, from :func:`~fem_frac.fracture.topology.fragments`) and cracks measured
     once."""
-    n, labels = pieces if pieces is not None else fragments(disc.mesh.tets)
+    if pieces is None:
+        interface = disc.ops.interface
+        links = interface.links(state.cohesive) if interface is not None else None
+        pieces = fragments(disc.mesh.tets, links)
+    n, labels = pieces
     return Body(disc, state, labels, n, crack_measures(disc.mesh), dict(fields or {}))
 
 

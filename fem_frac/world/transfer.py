@@ -3,13 +3,15 @@ leaving).
 
 Nodal values are copied to the new nodes, element state stays with its element (elements
 are never cut). That keeps the displacement field, the stresses, the elastic and kinetic
-energies, the mass and the linear and angular momenta exactly. With inertia the acceleration
+energies, the mass and the linear and angular momenta exactly. Cohesive crack faces keep
+their history (new faces start closed and undamaged). With inertia the acceleration
 is re-balanced on the new mesh (the force on a vertex is now shared by its copies), so the
 energy ledger of a re-solved step still balances.
 """
 
 from __future__ import annotations
 
+from ..cohesive.interface import carry_history
 from ..fracture.remap import dof_transfer, node_transfer, transfer_plastic
 from ..fracture.topology import Transfer
 from ..solve.discretization import Discretization
@@ -25,13 +27,16 @@ def carry(state: State, old: Discretization, new: Discretization, transfer: Tran
     plastic = transfer_plastic(state.plastic, transfer)
     ops, fixed = new.ops, new.constrained.dofs
     f_int = ops.strain_operator.internal_force(stress)
+    cohesive = carry_history(old.ops.interface, state.cohesive, ops.interface)
+    if cohesive is not None:
+        f_int = f_int + ops.interface.force(cohesive.traction)
     f_ext = new.problem.external_force(state.t)
     if not (inertia and ops.mass is not None):
         return State(state.t, u, v, a, stress, plastic, f_int,
-                     reaction(ops, fixed, f_int, f_ext))
+                     reaction(ops, fixed, f_int, f_ext), cohesive)
     a = balanced_acceleration(ops, new.constrained, f_int, f_ext, v, a)
     return State(state.t, u, v, a, stress, plastic, f_int,
-                 reaction(ops, fixed, f_int, f_ext, v, a))
+                 reaction(ops, fixed, f_int, f_ext, v, a), cohesive)
 
 
 def rediscretize(disc: Discretization, mesh, timer, why: str) -> Discretization:
