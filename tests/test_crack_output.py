@@ -170,8 +170,9 @@ def world_on(mesh, order, t, jump, shape=None):
     for where, d in jump.items():
         right = np.unique(nodes[centroid_x > where])
         u[right] += d if shape is None else np.outer(shape(x[right]), d)
-    body = SimpleNamespace(mesh=mesh, disc=SimpleNamespace(space=space),
-                           state=SimpleNamespace(u=u.ravel()), labels=labels)
+    disc = SimpleNamespace(space=space, ops=SimpleNamespace(interface=None))
+    body = SimpleNamespace(mesh=mesh, disc=disc, labels=labels,
+                           state=SimpleNamespace(u=u.ravel(), cohesive=None))
     return SimpleNamespace(t=t, body=body)
 
 

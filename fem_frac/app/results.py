@@ -146,14 +146,31 @@ class CrackWriter:
         mid = 0.5 * (u[faces.a] + u[faces.b])  # (k, 3 corners, 3)
         when = [self.opened[key] for key in faces.keys]
         k = len(faces)
+        damage, traction = _cohesive_faces(body, k)
         cell_data = {"opening": opening, "opening_norm": np.linalg.norm(opening, axis=1),
                      "normal_opening": np.einsum("ki,ki->k", opening, faces.normal),
                      "normal": faces.normal,
                      "opened_step": np.array([w[0] for w in when], dtype=np.int32),
-                     "opened_time": np.array([w[1] for w in when], dtype=float)}
+                     "opened_time": np.array([w[1] for w in when], dtype=float),
+                     "damage": damage, "traction": traction}
         return (body.mesh.points[faces.a].reshape(-1, 3),
                 ("triangle", np.arange(3 * k, dtype=np.int64).reshape(k, 3)),
                 {"displacement": mid.reshape(-1, 3)}, cell_data)
+
+
+def _cohesive_faces(body: Body, k: int) -> tuple[np.ndarray, np.ndarray]:
+    """Per crack face (in :func:`crack_faces` order, as the interface's faces): the fraction
+    of its fracture energy dissipated (1 for a traction-free face) and its mean traction."""
+    interface, state = body.disc.ops.interface, body.state.cohesive
+    if interface is None or state is None:
+        return np.ones(k), np.zeros((k, 3))
+    law, w, face = interface.law, interface.weights, interface.face
+    r = law.response(state.jump, interface.normals, state.kappa, interface.stiffness)
+    area = np.bincount(face, weights=w, minlength=k)
+    damage = np.bincount(face, weights=w * r.dissipated, minlength=k) / (law.energy * area)
+    traction = np.stack([np.bincount(face, weights=w * r.traction[:, i], minlength=k)
+                         for i in range(3)], axis=1) / area[:, None]
+    return damage, traction
 
 
 def _no_crack_face(mesh):
@@ -164,7 +181,7 @@ def _no_crack_face(mesh):
             {"displacement": zero3},
             {"opening": zero3, "opening_norm": np.zeros(1), "normal_opening": np.zeros(1),
              "normal": zero3, "opened_step": np.full(1, -1, dtype=np.int32),
-             "opened_time": np.full(1, np.nan)})
+             "opened_time": np.full(1, np.nan), "damage": np.zeros(1), "traction": zero3})
 
 
 def write_crack_surface(writer: CrackWriter | SeriesWriter, world: World, last_mesh) -> Path:
@@ -203,6 +220,9 @@ def history_row(n: int, world: World, info: StepInfo, fracture: FractureEvent | 
            "external_work": ledger.external_work, "fracture_energy": ledger.fracture,
            "handed_off": ledger.handed_off, "energy_error": ledger.error,
            "energy_error_relative": ledger.relative_error}
+    if disc.recipe.cohesive is not None:
+        row.update(cohesive_work=ledger.cohesive_work, cohesive_stored=ledger.cohesive_stored,
+                   cohesive_dissipated=ledger.cohesive_dissipated)
     state = body.state if body is not None else None
     for label, total in reaction_forces(disc, state).items():
         for axis, value in zip("xyz", total, strict=True):
@@ -306,6 +326,10 @@ def _fracture_summary(world: World, grid, tally) -> dict:
         "first_crack_time": grid.time(batches[0].step) if batches else None,
         "energy_released": world.ledger.fracture,
         "insertion_seconds": round(sum(b.insertion_seconds for b in batches), 6),
+        **({"cohesive_work": world.ledger.cohesive_work,
+            "cohesive_stored": world.ledger.cohesive_stored,
+            "cohesive_dissipated": world.ledger.cohesive_dissipated}
+           if last.disc.recipe.cohesive is not None else {}),
     }
 
 
