@@ -43,6 +43,10 @@ def test_case_runs_and_writes_readable_output(case, tmp_path):
     last = meshio.read(out / f"{case.stem}_{summary['output']['steps'] - 1:06d}.vtu")
     if fracture and "whole_body: true" not in text:
         check_cracks_open(out, case.stem, summary, history, vtu, last)
+    if "fracture_energy:" in text:  # cohesive faces dissipate, and the books say so
+        assert history["cohesive_dissipated"][-1] > 0
+        assert summary["fracture"]["cohesive_dissipated"] == pytest.approx(
+            history["cohesive_dissipated"][-1], rel=1e-9)  # the csv keeps 10 digits
     if "fragments:" in text:
         check_rigid_fragments(case, summary, history, last)
     if "plasticity:" in text:
