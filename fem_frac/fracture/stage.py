@@ -42,7 +42,11 @@ from ..writers.fields import cell_average
 from .front import crack_front, near_crack
 from .sites import Sites, select_sites, star, tilt
 from .smoothing import principal_stress, smooth, smoothing_operator, update_operator
-from .topology import CRACK, fragments, open_crack
+from .topology import CRACK, extract, fragments, open_crack
+
+# A piece that a crack cuts off without support in a static run is dropped as a sliver when
+# its volume is below this fraction of the body's (larger ones stop the run).
+SLIVER = 0.01
 
 FIELD = "smoothed_max_principal_stress"
 
@@ -161,7 +165,11 @@ class FractureStage:
         topo = self._caches(body.mesh)
         if step.initial:
             return replace(world, body=self._published(body, topo)), None
-        body = self._separated(body, step.n)
+        body, released = self._separated(body, step.n)
+        if released:
+            world = replace(world, ledger=replace(world.ledger,
+                                                  fracture=world.ledger.fracture + released))
+            topo = self._caches(body.mesh)
         end, ledger, event = self._insert(step, body, world.ledger, topo)
         if event.batches and not self.inertia:
             # the re-solved step's imbalance beyond the regular step's is the released
@@ -199,7 +207,9 @@ class FractureStage:
             start = carry(start, body.disc, disc, transfer, self.inertia)
             new = body_of(disc, start, pieces=pieces)
             if not self.inertia:
-                _check_supports(new, step.n)
+                new, _ = self.loose(new, step.n)
+                disc, start = new.disc, new.state
+                topo = self._caches(new.mesh)
             seconds = time.perf_counter() - t0
             state, ledger, info = advance(disc.stepper, start, step.t, start_ledger, step.n)
             resolve = info if resolve is None else resolve.then(info)
@@ -211,17 +221,45 @@ class FractureStage:
             passes += 1
         return body, ledger, FractureEvent(tuple(batches), passes, resolve)
 
-    def _separated(self, body: Body, n: int) -> Body:
+    def _separated(self, body: Body, n: int) -> tuple[Body, float]:
         """The body with its pieces counted again when cohesive faces have broken (pieces
-        hold together through the faces that still carry traction)."""
+        hold together through the faces that still carry traction), and the energy of
+        slivers dropped (:meth:`loose`)."""
         if body.disc.ops.interface is None or body.state.cohesive is None:
-            return body
+            return body, 0.0
         new = body_of(body.disc, body.state, body.fields)
-        if new.n_pieces == body.n_pieces:
-            return body
-        if not self.inertia:
-            _check_supports(new, n)
-        return new
+        if new.n_pieces == body.n_pieces or self.inertia:
+            return new, 0.0
+        return self.loose(new, n)
+
+    def loose(self, body: Body, n: int) -> tuple[Body, float]:
+        """Without inertia: pieces no support holds. Slivers (each below ``SLIVER`` of the
+        body's volume, cut off where a crack meets coarse cells) are dropped from the mesh,
+        with the energy they held (returned); a larger loose piece stops the run."""
+        loose = _unsupported(body)
+        if not loose:
+            return body, 0.0
+        volumes = np.bincount(body.labels, weights=tet_volumes(body.mesh.points,
+                                                               body.mesh.tets),
+                              minlength=body.n_pieces)
+        for k, free in loose:
+            if volumes[k] > SLIVER * volumes.sum():
+                count = int(np.count_nonzero(body.labels == k))
+                raise SolverError(
+                    f"step {n}, stage fracture: a crack cut off a piece of {count} elements "
+                    f"that no support holds ({', '.join(free)} free): a static or "
+                    "quasi-static solve is singular; use a dynamic analysis, or support "
+                    "every piece (output so far kept)")
+        gone = np.isin(body.labels, [k for k, _ in loose])
+        mesh, transfer = extract(body.mesh, ~gone)
+        disc = rediscretize(body.disc, mesh, self.timer, "after dropping loose slivers")
+        state = carry(body.state, body.disc, disc, transfer, inertia=False)
+        self.log(f"fracture   step {n}: dropped {len(loose)} loose sliver(s) of "
+                 f"{np.count_nonzero(gone)} elements ({volumes[[k for k, _ in loose]].sum():.3g}"
+                 " in volume) that no support holds")
+        before, after = _stored(body), _stored(body_of(disc, state))
+        return body_of(disc, state, {k: v[~gone] for k, v in body.fields.items()}), \
+            before - after
 
     # -- caches ----------------------------------------------------------------------------
 
@@ -303,18 +341,23 @@ class FractureStage:
         return sites, None, None, np.array(dropped, dtype=np.int64), None
 
 
-def _check_supports(body: Body, n: int) -> None:
-    """Without inertia a piece with no support makes the solve singular: say which."""
+def _unsupported(body: Body) -> list[tuple[int, list[str]]]:
+    """The pieces no support holds, with the rigid motions each leaves free (without
+    inertia such a piece makes the solve singular)."""
     space, dofs = body.disc.space, body.disc.constrained.dofs
     node_fragment = np.empty(space.n_nodes, dtype=np.int64)
     nodes = space.basis.element_dofs.T
     node_fragment[nodes] = body.labels[:, None]
+    out = []
     for k in range(body.n_pieces):
         free = free_rigid_modes(space, dofs, np.flatnonzero(node_fragment == k))
         if free:
-            count = int(np.count_nonzero(body.labels == k))
-            raise SolverError(
-                f"step {n}, stage fracture: a crack cut off a piece of {count} elements "
-                f"that no support holds ({', '.join(free)} free): a static or "
-                "quasi-static solve is singular; use a dynamic analysis, or support "
-                "every piece (output so far kept)")
+            out.append((k, free))
+    return out
+
+
+def _stored(body: Body) -> float:
+    """Strain energy of the body's state, with what its cohesive faces store."""
+    state, disc = body.state, body.disc
+    faces = state.cohesive.stored if state.cohesive is not None else 0.0
+    return disc.law.elastic_energy(state.stress, disc.ops.weights) + faces
