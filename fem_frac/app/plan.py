@@ -129,6 +129,9 @@ def _fracture(case: Case) -> Stage:
         text += f"; normals tilted up to {f.perturbation.angle:g} deg (seed {f.perturbation.seed})"
     if f.protect:
         text += f"; {len(f.protect)} protected part(s)"
+    law = f.cohesive_law
+    text += (f"; faces cohesive ({law.law} softening, G_c {f.fracture_energy:g}), growing "
+             "from crack fronts" if law is not None else "; faces traction-free")
     return Stage("fracture", True, text)
 
 
