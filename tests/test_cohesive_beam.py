@@ -1,0 +1,139 @@
+"""The notched beam with cohesive cracks (cases/notched_beam_cohesive.yaml, mesh study in
+docs/fracture/cohesive_convergence.md).
+
+Default size (5 mm = l_cz / 4, about 30 s): the first crack opens on the ligament plane at
+the notch tip, the load peaks and softens, the energy ledger balances, no face dissipates
+more than G_c. Two goals the solver does not meet yet are expected failures (the docs say
+why): every crack face within one element size of the ligament plane, and a crack area
+below 1.3 ligament areas. The slow test runs the three-mesh study.
+"""
+
+import importlib.util
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from fem_frac.app.cli import main
+from fem_frac.writers.history import read_history
+
+ROOT = Path(__file__).parent.parent
+CASE = ROOT / "cases" / "notched_beam_cohesive.yaml"
+STUDY = ROOT / "studies" / "notched_beam_cohesive.yaml"
+SCRIPT = ROOT / "docs" / "fracture" / "cohesive_study.py"
+
+XM, NOTCH_TIP_Z, LIGAMENT_AREA, G_C = 0.085, 0.02, 0.02 * 0.005, 6.0
+SOLVER_LIMIT = ("solver limitation (docs/fracture/cohesive_convergence.md): a crack front "
+                "vertex is split with the triggering element's own principal direction, "
+                "tilted 20-60 deg from the ligament normal where the stress ahead of the "
+                "front is nearly equibiaxial, so faces open off the ligament plane")
+
+
+def _script():
+    spec = importlib.util.spec_from_file_location("cohesive_study", SCRIPT)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+@pytest.fixture(scope="module")
+def default_run(tmp_path_factory):
+    out = tmp_path_factory.mktemp("cohesive") / "beam"
+    assert main(["run", str(CASE), "-o", str(out), "-q"]) == 0
+    summary = json.loads((out / "summary.json").read_text())
+    history = {k: np.asarray(v, dtype=float)
+               for k, v in read_history(out / "history.csv").items()}
+    return out, summary, history, _script().read_run(out)
+
+
+def test_first_crack_opens_on_the_ligament_plane_at_the_notch_tip(default_run):
+    import meshio
+
+    out, summary, history, _ = default_run
+    assert summary["status"] == "completed"
+    h = 0.005
+    first = int(np.argmax(history["crack_faces"] > 0))
+    assert first > 0
+    crack = meshio.read(out / f"notched_beam_cohesive_crack_{first:06d}.vtu")
+    corners = crack.points[crack.cells_dict["triangle"]]
+    assert np.all(np.abs(corners[:, :, 0] - XM) < 1e-9)  # on the plane x = XM
+    assert corners[:, :, 2].min() == pytest.approx(NOTCH_TIP_Z, abs=1e-9)  # from the tip
+    assert corners[:, :, 2].max() <= NOTCH_TIP_Z + h + 1e-9
+
+
+def test_load_peaks_and_softens(default_run):
+    _, _, history, run = default_run
+    load = -history["reaction_load_z"]
+    peak = int(np.argmax(load))
+    first_crack = int(np.argmax(history["crack_faces"] > 0))
+    # elastic and linear up to the first crack (the stiffness is constant)
+    elastic = slice(1, first_crack)
+    stiffness = load[elastic] / run["delta"][elastic]
+    np.testing.assert_allclose(stiffness, stiffness[0], rtol=1e-6)
+    assert first_crack <= peak < len(load) - 1
+    assert 30.0 < load[peak] < 60.0  # N; 44.0 measured
+    # softening: past the peak the load falls to half of it and stays below 0.7 of it
+    assert load[peak:].min() < 0.5 * load[peak]
+    assert load[-1] < 0.7 * load[peak]
+
+
+def test_energy_ledger_balances(default_run):
+    _, summary, history, _ = default_run
+    assert np.max(history["energy_error_relative"]) < 1e-6
+    # quasi-static, no plasticity: external work = strain energy + cohesive work + the
+    # energy released by insertions
+    np.testing.assert_allclose(
+        history["external_work"],
+        history["strain_energy"] + history["cohesive_work"] + history["fracture_energy"],
+        rtol=1e-6, atol=1e-12)
+    f = summary["fracture"]
+    assert f["cohesive_dissipated"] > 0 and f["cohesive_stored"] >= 0
+    # no face dissipates more than G_c per unit area
+    assert np.all(history["cohesive_dissipated"] <= G_C * history["crack_area"] * (1 + 1e-9))
+
+
+@pytest.mark.xfail(reason=SOLVER_LIMIT, strict=False)
+def test_crack_stays_within_one_element_of_the_ligament_plane(default_run):
+    assert default_run[3]["max_offset"] <= 0.005
+
+
+@pytest.mark.xfail(reason=SOLVER_LIMIT, strict=False)
+def test_crack_area_below_1_3_ligament_areas(default_run):
+    assert default_run[3]["crack_area"] < 1.3
+
+
+@pytest.fixture(scope="module")
+def study_runs(tmp_path_factory):
+    out = tmp_path_factory.mktemp("cohesive_study")
+    assert main(["study", str(STUDY), "-o", str(out), "-q"]) == 0
+    script = _script()
+    runs = sorted((script.read_run(d) for d in (out / "runs").iterdir()), key=lambda r: -r["h"])
+    assert [r["h"] for r in runs] == [0.01, 0.005, 0.0025]
+    return runs
+
+
+@pytest.mark.slow
+def test_study_peak_load_converges(study_runs):
+    """The peak loads of l_cz/2, l_cz/4, l_cz/8 (56.7, 44.0, 36.8 N measured): differences
+    shrink, observed order above 0.5 (0.83 measured; the meshes are not similar from one
+    size to the next and the crack advances by whole vertex stars). The coarsest run stops
+    at step 57 (singular tangent) but past its peak; the two finer ones run to the end."""
+    assert [r["status"] for r in study_runs[1:]] == ["completed", "completed"]
+    coarse = study_runs[0]
+    assert coarse["steps"] > int(np.argmax(coarse["load"])) + 5
+    h = [r["h"] for r in study_runs]
+    peaks = [r["peak_load"] for r in study_runs]
+    assert abs(peaks[0] - peaks[1]) > abs(peaks[1] - peaks[2])
+    order = _script().observed_order(h, peaks)
+    assert order is not None and order > 0.5
+
+
+@pytest.mark.slow
+@pytest.mark.xfail(reason=SOLVER_LIMIT, strict=False)
+def test_study_dissipation_and_crack_area(study_runs):
+    """The goals: dissipated energy at the end within 10 % of G_c x ligament area on the
+    finest mesh, crack area below 1.3 ligament areas at every size (measured: 1.15 and
+    2.7-5.1)."""
+    assert abs(study_runs[-1]["dissipated"] - 1.0) < 0.1
+    assert all(r["crack_area"] < 1.3 for r in study_runs)
