@@ -94,16 +94,19 @@ def test_resume_skips_finished_runs(done, capsys):
     summaries = sorted((out / "runs").glob("*/summary.json"))
     assert len(summaries) == 3
     before = {p: p.stat().st_mtime_ns for p in summaries}
-    redo = summaries[1]
+    redo, stopped = summaries[1], summaries[2]
     redo.unlink()
+    # a run that stopped leaves a summary saying how far it got: it is run again
+    stopped.write_text(json.dumps({"status": "failed", "step": 1}))
     capsys.readouterr()
     assert main(["study", str(path), "-o", str(out)]) == 0
     err = capsys.readouterr().err
-    assert err.count("done earlier") == 2
+    assert err.count("done earlier") == 1
     for p, t in before.items():
-        if p != redo:
+        if p not in (redo, stopped):
             assert p.stat().st_mtime_ns == t  # not run again
     assert redo.is_file()
+    assert json.loads(stopped.read_text())["status"] == "completed"
     assert len(_rows(out / "study.csv")) == 3
 
 

@@ -118,8 +118,9 @@ class ImplicitStepper:
     structure is stable), refactorized when damage has changed it. Full Newton iterates
     with the faces' consistent tangent and a backtracking line search (the law's kinks, at
     the peak and from loading to unloading, make full steps cycle); where even the shortest
-    step fails to reduce the residual, the step goes on as modified Newton with the secant
-    stiffness of that iterate, factorized once, and Anderson acceleration.
+    step fails to reduce the residual, or where softening faces make the tangent indefinite,
+    the step goes on as modified Newton with the secant stiffness of that iterate,
+    factorized once, and Anderson acceleration.
     """
 
     def __init__(self, problem, law, ops: Operators, scheme: Implicit,
@@ -319,6 +320,11 @@ class ImplicitStepper:
         try:
             it.factor = self.constrained.factorize(self.jacobian(stiffness), self.tangents)
         except SolverError:
+            if it.cohesive_tangent is not None and not it.secant:
+                # softening faces made the tangent indefinite: go on with their secant
+                it.secant = True
+                self._refactorize(it, t, step)
+                return
             raise NotConverged(
                 f"step {step} (t = {t:.6g}): the consistent tangent became singular after "
                 f"{it.iterations} iterations of newton (relative residual "

@@ -140,13 +140,16 @@ def execute(case_path: str, run_dir: str, overrides: tuple[str, ...],
 
 
 def _load_summary(run_dir: Path) -> dict | None:
+    """The summary of a run that completed; ``None`` for one to (re)run: never run, or
+    stopped (its summary says how far it got, ``status`` running, failed or interrupted)."""
     p = run_dir / "summary.json"
     if not p.is_file():
         return None
     try:
-        return json.loads(p.read_text())
+        summary = json.loads(p.read_text())
     except (OSError, ValueError):
         return None
+    return summary if summary.get("status") == "completed" else None
 
 
 def _record(run_dir: Path) -> dict:
