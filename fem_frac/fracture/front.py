@@ -13,7 +13,8 @@ from __future__ import annotations
 import numpy as np
 import scipy.sparse as sp
 
-from ..mesh.crack import CRACK
+from ..fem.tensors import matrices_from_mandel
+from ..mesh.crack import CRACK, crack_faces
 from ..mesh.mesh import TET_FACES, Mesh, edge_keys, exterior_face_rows, facet_keys
 
 _TRIANGLE_EDGES = np.array([[0, 1], [1, 2], [0, 2]])
@@ -75,3 +76,44 @@ def near_crack(mesh: Mesh, neighbourhood: sp.spmatrix) -> np.ndarray:
     marked = np.zeros(mesh.n_points, dtype=bool)
     marked[_crack_triangles(mesh).ravel()] = True
     return near_marked(mesh.tets, neighbourhood, marked)
+
+
+def front_normals(mesh: Mesh, front: np.ndarray) -> np.ndarray:
+    """``(m, 3)``: for every tet with a vertex on a crack front, the unit normal of the crack
+    there (the area-weighted mean normal of the crack faces at its front vertices, oriented
+    as :func:`~fem_frac.mesh.crack.crack_faces` orients them); zero for the other tets."""
+    faces = crack_faces(mesh)
+    weighted = np.zeros((mesh.n_points, 3))
+    if len(faces):
+        p = mesh.points[faces.a]
+        area_normal = 0.5 * np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0])
+        area_normal *= np.sign(np.einsum("ki,ki->k", area_normal, faces.normal))[:, None]
+        for side in (faces.a, faces.b):
+            for i in range(3):
+                np.add.at(weighted, side[:, i], area_normal)
+    weighted[~front] = 0.0
+    total = weighted[mesh.tets].sum(axis=1)
+    size = np.linalg.norm(total, axis=1, keepdims=True)
+    return np.divide(total, size, out=np.zeros_like(total), where=size > 0)
+
+
+# A front goes on in its plane while the normal stress on that plane is at least this
+# fraction of the largest principal stress: cos^2(30 deg), the normal stress on a plane 30
+# deg off the principal one under uniaxial tension.
+CONTINUE = 0.75
+
+
+def continue_planes(directions: np.ndarray, smoothed: np.ndarray, sigma1: np.ndarray,
+                    normals: np.ndarray) -> np.ndarray:
+    """The crack normals ``(m, 3)`` sites use: where a tet touches a crack front
+    (``normals`` non-zero) and the smoothed stress ``(6, m)`` (Mandel) pulls that crack's
+    own plane apart by at least ``CONTINUE`` of the largest principal stress ``sigma1
+    (m,)``, the crack goes on in its plane (its normal); elsewhere the principal
+    ``directions`` (the crack kinks)."""
+    n = normals
+    sigma = matrices_from_mandel(smoothed)  # (m, 3, 3)
+    traction = np.einsum("mi,mij,mj->m", n, sigma, n)
+    keep = (np.linalg.norm(n, axis=1) > 0) & (traction >= CONTINUE * sigma1) & (sigma1 > 0)
+    out = directions.copy()
+    out[keep] = n[keep]
+    return out

@@ -39,7 +39,7 @@ from ..world.stage import Step
 from ..world.state import Body, World, body_of
 from ..world.transfer import carry, rediscretize
 from ..writers.fields import cell_average
-from .front import crack_front, near_crack
+from .front import continue_planes, crack_front, front_normals, near_crack
 from .sites import Sites, select_sites, star, tilt
 from .smoothing import principal_stress, smooth, smoothing_operator, update_operator
 from .topology import CRACK, extract, fragments, open_crack
@@ -124,7 +124,8 @@ class _Topology:
     refused: np.ndarray
     front: np.ndarray | None = None  # cohesive cracks: vertices of their fronts
     near: np.ndarray | None = None  # and the tets whose neighbourhood reaches a crack
-    principal: tuple | None = None  # (stress array, (sigma1, direction)) last asked about
+    front_normals: np.ndarray | None = None  # the crack's normal at tets on a front
+    principal: tuple | None = None  # (stress, (sigma1, direction), smoothed) last asked
 
 
 def _topology(config: schema.Fracture, mesh: Mesh, smoothing, strict: bool) -> _Topology:
@@ -134,14 +135,15 @@ def _topology(config: schema.Fracture, mesh: Mesh, smoothing, strict: bool) -> _
     pattern.data[:] = 1.0
     on_crack = np.zeros(mesh.n_points, dtype=bool)
     on_crack[np.asarray(mesh.boundaries.get(CRACK, np.zeros((0, 3), int))).ravel()] = True
-    front = near = None
+    front = near = normals = None
     if config.fracture_energy is not None:
-        # cohesive cracks grow from their fronts (fem_frac.fracture.sites)
+        # cohesive cracks grow from their fronts (fem_frac.fracture.sites), in their planes
         front, near = crack_front(mesh), near_crack(mesh, pattern)
+        normals = front_normals(mesh, front)
     return _Topology(mesh, smoothing, protected_vertices(config, mesh, strict),
                      star(mesh.tets, mesh.n_points), volumes,
                      float(np.median(pattern @ volumes)), on_crack,
-                     np.zeros(mesh.n_points, dtype=bool), front, near)
+                     np.zeros(mesh.n_points, dtype=bool), front, near, normals)
 
 
 class FractureStage:
@@ -290,9 +292,9 @@ class FractureStage:
         stress = body.state.stress
         if topo.principal is not None and topo.principal[0] is stress:
             return topo.principal[1]
-        mean = cell_average(body.disc.space, stress)
-        result = principal_stress(smooth(topo.smoothing, mean))
-        topo.principal = (stress, result)
+        smoothed = smooth(topo.smoothing, cell_average(body.disc.space, stress))
+        result = principal_stress(smoothed)
+        topo.principal = (stress, result, smoothed)
         return result
 
     def _published(self, body: Body, topo: _Topology) -> Body:
@@ -303,6 +305,9 @@ class FractureStage:
         """Up to ``limit`` crack sites of the body's state (batch ``batch`` of step ``n``)."""
         mesh = body.mesh
         sigma1, direction = self.principal(body, topo)
+        if topo.front_normals is not None:
+            direction = continue_planes(direction, topo.principal[2], sigma1,
+                                        topo.front_normals)
         p = self.config.perturbation
         if p is not None:
             rng = np.random.default_rng([p.seed, n, batch])

@@ -31,6 +31,8 @@ class NotConverged(SolverError):
 ROUND_OFF = 1e-13
 # Halvings of a full Newton correction tried before falling back on the secant stiffness.
 LINE_SEARCH_HALVINGS = 4
+# Iterations on one secant factorization before the secant of the latest iterate replaces it.
+SECANT_REFRESH = 25
 # Past corrections Anderson mixing keeps (Walker & Ni 2011 use 1 to 10; 5 is a common choice).
 ANDERSON_DEPTH = 5
 
@@ -93,6 +95,7 @@ class _Iterate:
     cohesive_secant: np.ndarray | None = None
     secant: bool = False  # full Newton fell back on the faces' secant stiffness
     frozen: bool = False  # and iterates on with that factorization (Anderson-accelerated)
+    frozen_at: int = -1  # the iteration that factorization was made at
 
 
 @dataclass(frozen=True, eq=False)
@@ -119,8 +122,8 @@ class ImplicitStepper:
     with the faces' consistent tangent and a backtracking line search (the law's kinks, at
     the peak and from loading to unloading, make full steps cycle); where even the shortest
     step fails to reduce the residual, or where softening faces make the tangent indefinite,
-    the step goes on as modified Newton with the secant stiffness of that iterate,
-    factorized once, and Anderson acceleration.
+    the step goes on as modified Newton with the secant stiffness of that iterate and
+    Anderson acceleration, the secant refactorized every ``SECANT_REFRESH`` iterations.
     """
 
     def __init__(self, problem, law, ops: Operators, scheme: Implicit,
@@ -186,8 +189,8 @@ class ImplicitStepper:
             it.correction = it.factor.solve(residual[self.constrained.free])
             it.solves += 1
             free = self.constrained.free
-            if accelerate is None and it.secant:
-                accelerate = Anderson(ANDERSON_DEPTH)
+            if it.secant and (accelerate is None or it.frozen_at == it.iterations):
+                accelerate = Anderson(ANDERSON_DEPTH)  # on the secant just factorized
             if accelerate is not None:
                 it.correction = accelerate(it.u[free], it.correction)
             if self.ops.interface is not None and method == "newton" and not it.secant:
@@ -301,6 +304,8 @@ class ImplicitStepper:
                 f"tolerance {self.equilibrium.tolerance:g}); take smaller steps"
                 + (", or use analysis.equilibrium.method: newton"
                    if method != "newton" else ""))
+        if it.frozen and it.iterations - it.frozen_at >= SECANT_REFRESH:
+            it.frozen = False  # the secant of an iterate closer to equilibrium
         if method == "newton" and (self.law.plastic or self.ops.interface is not None) \
                 and not it.frozen:
             self._refactorize(it, t, step)
@@ -316,6 +321,7 @@ class ImplicitStepper:
         if it.cohesive_tangent is not None:
             faces = it.cohesive_secant if it.secant else it.cohesive_tangent
             it.frozen = it.secant
+            it.frozen_at = it.iterations
             stiffness = stiffness + self.ops.interface.matrix(faces)
         try:
             it.factor = self.constrained.factorize(self.jacobian(stiffness), self.tangents)
