@@ -6,7 +6,13 @@ import numpy as np
 import pytest
 
 from fem_frac.fracture import CRACK, open_crack
-from fem_frac.fracture.front import crack_front, near_crack
+from fem_frac.fracture.front import (
+    CONTINUE,
+    continue_planes,
+    crack_front,
+    front_normals,
+    near_crack,
+)
 from fem_frac.fracture.sites import select_sites, splits, star
 from fem_frac.fracture.smoothing import smoothing_operator
 from fem_frac.mesh.mesh import TET_EDGES
@@ -161,3 +167,38 @@ def test_front_none_is_the_plain_rule(cracked):
     assert np.all(front[grown.vertices] | ~near[grown.elements])
     np.testing.assert_array_equal(grown.vertices,
                                   select_sites(*args, front=front, near=near).vertices)
+
+
+def test_front_normals_are_the_cracks_own():
+    """On a planar crack x = 0.5 every tet touching the front gets the normal x; the rest
+    none."""
+    new = _open(structured_box((4, 4, 4)), lambda p: p[:, 1] < 0.6)
+    front = crack_front(new)
+    normals = front_normals(new, front)
+    touching = front[new.tets].any(axis=1)
+    np.testing.assert_allclose(normals[touching], np.tile(X, (touching.sum(), 1)), atol=1e-12)
+    assert not normals[~touching].any()
+
+
+@pytest.mark.parametrize("share", [CONTINUE + 0.01, CONTINUE - 0.01])
+def test_a_front_goes_on_in_its_plane_while_the_stress_pulls_it_apart(share):
+    """A stress whose principal direction is tilted 40 deg from the crack normal: the crack
+    goes on in its plane when the normal stress on that plane is at least CONTINUE of the
+    largest principal stress, and kinks (the principal direction) when it is not."""
+    angle = np.radians(40.0)
+    d = np.array([np.cos(angle), 0.0, np.sin(angle)])  # principal direction, in x-z
+    e = np.array([-np.sin(angle), 0.0, np.cos(angle)])
+    # sigma = s1 d d^T + s2 e e^T with n.sigma.n = share s1 on n = x
+    s1 = 1.0
+    s2 = (share * s1 - s1 * d[0] ** 2) / e[0] ** 2
+    sigma = s1 * np.outer(d, d) + s2 * np.outer(e, e)
+    r2 = np.sqrt(2.0)
+    mandel = np.array([sigma[0, 0], sigma[1, 1], sigma[2, 2], r2 * sigma[0, 1],
+                       r2 * sigma[1, 2], r2 * sigma[0, 2]])[:, None]
+    assert s1 >= s2
+    out = continue_planes(d[None, :], mandel, np.array([s1]), X[None, :])
+    expected = X if share >= CONTINUE else d
+    np.testing.assert_allclose(out[0], expected, atol=1e-12)
+    # a tet off every front keeps the principal direction
+    out = continue_planes(d[None, :], mandel, np.array([s1]), np.zeros((1, 3)))
+    np.testing.assert_allclose(out[0], d)
