@@ -295,12 +295,12 @@ def _critical_opening(law, sigma: float, gc: float, k0: float) -> str:
 
 def _cohesive_lines(case: Case, mesh, materials, protected: np.ndarray) -> list[str]:
     """The cohesive law; its length l_cz = E G_c / sigma_t^2 (smallest E of the body) and
-    the size of the elements where cracks can run (no protected vertex) beside it."""
+    the size of the elements where cracks can run (a vertex that may split) beside it."""
     f, law = case.fracture, case.fracture.cohesive_law
     energy_unit, length_unit = _UNITS[case.units]
     sigma, gc = f.tensile_strength, f.fracture_energy
     e = np.broadcast_to(np.asarray(materials.youngs_modulus, dtype=float), (mesh.n_tets,))
-    free = ~protected[mesh.tets].any(axis=1)
+    free = ~protected[mesh.tets].all(axis=1)  # a site splits one unprotected vertex
     sizes = _element_sizes(mesh)
     h, e_free = (sizes[free], e[free]) if free.any() else (sizes, e)
     median, largest = float(np.median(h)), float(h.max())
@@ -314,9 +314,9 @@ def _cohesive_lines(case: Case, mesh, materials, protected: np.ndarray) -> list[
              f"  cohesive length l_cz = E G_c / sigma_t^2 = {lcz:.4g} {length_unit}"
              + ("" if uniform else " (with the smallest E of the regions)")]
     if not free.any():
-        return lines + ["  no element without a protected vertex: no crack can run"]
-    lines.append(f"  where cracks can run ({np.count_nonzero(free):,} elements with no "
-                 f"protected vertex): element size median {median:.4g}, max {largest:.4g} "
+        return lines + ["  every vertex is protected: no crack can run"]
+    lines.append(f"  where cracks can run ({np.count_nonzero(free):,} elements with a "
+                 f"vertex free to split): element size median {median:.4g}, max {largest:.4g} "
                  f"{length_unit}; l_cz / h = {lcz / median:.3g} and {lcz / largest:.3g}")
     # each material apart, by its own E (one group when the body is uniform)
     worst = None
