@@ -167,11 +167,14 @@ class FractureStage:
         topo = self._caches(body.mesh)
         if step.initial:
             return replace(world, body=self._published(body, topo)), None
-        body, released = self._separated(body, step.n)
-        if released:
-            world = replace(world, ledger=replace(world.ledger,
-                                                  fracture=world.ledger.fracture + released))
-            topo = self._caches(body.mesh)
+        separated, released = self._separated(body, step.n)
+        if separated.mesh is not body.mesh:
+            # slivers dropped: the step's start lives on the old mesh, so no insertion
+            # re-solves this step; the next one looks for sites on the new mesh
+            ledger = replace(world.ledger, fracture=world.ledger.fracture + released)
+            end = self._published(separated, self._caches(separated.mesh))
+            return replace(world, body=end, ledger=ledger), None
+        body = separated
         end, ledger, event = self._insert(step, body, world.ledger, topo)
         if event.batches and not self.inertia:
             # the re-solved step's imbalance beyond the regular step's is the released
