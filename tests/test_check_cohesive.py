@@ -127,3 +127,14 @@ def test_everything_protected_says_no_crack_can_run(tmp_path, capsys):
     assert number(line(out, "cohesive length"), "sigma_t^2 =") == pytest.approx(LCZ, rel=1e-3)
     assert "every vertex is protected: no crack can run" in out
     assert "warning" not in out
+
+
+def test_an_absurd_fracture_energy_is_a_located_error(tmp_path, capsys):
+    """G_c so small that the faces' least stiffness 2 sigma_t^2 / G_c overflows: one located
+    line, exit 2, no traceback."""
+    case = bar(0.008, fracture_energy=1e-300)
+    path = write_case(tmp_path / "absurd.yaml", case)
+    assert main(["check", str(path)]) == 2
+    err = capsys.readouterr().err
+    assert "fracture.fracture_energy" in err and "out of range" in err
+    assert "Traceback" not in err

@@ -63,6 +63,15 @@ def interface_recipe(fracture) -> InterfaceRecipe | None:
     law = fracture.cohesive_law if fracture is not None else None
     if law is None:
         return None
+    sigma, energy = fracture.tensile_strength, fracture.fracture_energy
+    with np.errstate(over="ignore", under="ignore"):
+        scales = (2.0 * energy / sigma, 2.0 * sigma**2 / energy)  # lambda_c, the least k0
+    if not all(np.isfinite(x) and x > 0.0 for x in scales):
+        raise CaseError(("fracture", "fracture_energy"),
+                        f"G_c = {energy:g} with tensile_strength {sigma:g} is out of range: "
+                        f"the critical opening 2 G_c / sigma_t = {scales[0]:g} and the "
+                        f"faces' least stiffness 2 sigma_t^2 / G_c = {scales[1]:g} must be "
+                        "finite and positive (is the unit right?)")
     return InterfaceRecipe(TractionSeparation(law.law, fracture.tensile_strength,
                                               fracture.fracture_energy, law.shear_weight),
                            law.penalty)
