@@ -4,11 +4,11 @@ when the mesh is too coarse to resolve it."""
 
 from __future__ import annotations
 
-import re
 from pathlib import Path
 
 import numpy as np
 import pytest
+from report_text import check, line, number
 
 from fem_frac.app.cli import main
 from fem_frac.config.loader import load_case
@@ -34,23 +34,6 @@ def bar(element_size: float, **fracture) -> dict:
                      "protect": [{"boundary": "xmin"}, {"boundary": "xmax"}], **fracture},
         "analysis": {"type": "quasi_static", "steps": 1},
     }
-
-
-def check(tmp_path: Path, capsys, case: dict) -> str:
-    path = write_case(tmp_path / "case.yaml", case)
-    capsys.readouterr()
-    assert main(["check", str(path)]) == 0
-    return capsys.readouterr().out
-
-
-def line(text: str, start: str) -> str:
-    hits = [x for x in text.splitlines() if x.lstrip().startswith(start)]
-    assert len(hits) == 1, (start, text)
-    return hits[0]
-
-
-def number(text: str, before: str) -> float:
-    return float(re.search(re.escape(before) + r" (\S+?)[;,)]?(?:\s|$)", text).group(1))
 
 
 def free_sizes(tmp_path: Path, case: dict) -> np.ndarray:

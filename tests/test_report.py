@@ -8,8 +8,8 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from report_text import check, line, number
 
-from fem_frac.app.cli import main
 from fem_frac.config.loader import load_case
 from fem_frac.mesh.build import build_mesh
 from fem_frac.mesh.mesh import exterior_facets
@@ -32,23 +32,6 @@ PLATE = {
     "load_curves": {"pulse": {"type": "table", "points": [[0, 0], [3e-6, 2.0], [1e-5, 0]]}},
     "analysis": {"type": "dynamic", "dt": 2e-6, "steps": 5},
 }
-
-
-def check(tmp_path: Path, capsys, case: dict) -> str:
-    path = write_case(tmp_path / "case.yaml", case)
-    capsys.readouterr()
-    assert main(["check", str(path)]) == 0
-    return capsys.readouterr().out
-
-
-def line(text: str, start: str) -> str:
-    hits = [x for x in text.splitlines() if x.lstrip().startswith(start)]
-    assert len(hits) == 1, (start, text)
-    return hits[0]
-
-
-def number(text: str, before: str) -> float:
-    return float(re.search(re.escape(before) + r" (\S+?)[;,)]?(?:\s|$)", text).group(1))
 
 
 def vector(text: str, before: str) -> np.ndarray:

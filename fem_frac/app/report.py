@@ -8,6 +8,8 @@ from pathlib import Path
 import numpy as np
 
 from .. import __version__
+from ..cohesive.interface import least_stiffness
+from ..cohesive.law import M as EXPONENTIAL_M
 from ..config.loader import Source
 from ..config.schema import Case, DynamicAnalysis
 from ..fem.loads import facet_basis
@@ -18,7 +20,7 @@ from ..solve.discretization import check_model, model_on
 from ..solve.loading import time_grid
 from ..solve.problem import outer_facets
 from ..timing import StageTimer
-from .driver import check_stages, recipe_of
+from .driver import check_stages, interface_recipe, recipe_of
 from .plan import format_plan, make_plan
 
 # Tets with a smaller minimum dihedral angle than this are reported as poorly shaped.
@@ -267,9 +269,6 @@ def _fracture_lines(case: Case, mesh, materials) -> list[str]:
 # Units of the fracture energy and of lengths, by the case's ``units``.
 _UNITS = {"SI": ("J/m^2", "m"), "mm-N-s": ("N/mm", "mm")}
 
-# The exponential law's truncation, in decay lengths past the peak (fem_frac.cohesive.law.M).
-_EXPONENTIAL_M = 6.0
-
 
 def _element_sizes(mesh) -> np.ndarray:
     """``(n_tets,)`` mean length of each tet's six edges."""
@@ -279,17 +278,14 @@ def _element_sizes(mesh) -> np.ndarray:
     return np.linalg.norm(x[:, :, 1] - x[:, :, 0], axis=2).mean(axis=1)
 
 
-def _critical_opening(law, sigma: float, gc: float, k0: float) -> str:
-    """Where the law's traction reaches zero: 2 G_c / sigma_t (linear), or lambda_0 + M ell
-    with lambda_0 = sigma_t / k0 (exponential, as fem_frac.cohesive.law defines them)."""
-    linear = 2.0 * gc / sigma
-    if law.law == "linear":
+def _critical_opening(law, k0: float) -> str:
+    """Where the law's traction reaches zero (``law``: a TractionSeparation), at the
+    initial stiffness ``k0`` for the exponential law, whose end depends on it."""
+    linear = 2.0 * law.energy / law.strength
+    if law.kind == "linear":
         return f"critical opening 2 G_c / sigma_t = {linear:.4g}"
-    m = _EXPONENTIAL_M
-    c_m = 1.0 - m * np.exp(-m) / -np.expm1(-m)
-    lam0 = sigma / k0
-    ell = (gc - 0.5 * sigma * lam0) / (sigma * c_m)
-    return (f"critical opening lambda_0 + {m:g} ell = {lam0 + m * ell:.4g} for the median "
+    return (f"critical opening lambda_0 + {EXPONENTIAL_M:g} ell = "
+            f"{float(law.critical_opening(k0)):.4g} for the median "
             f"k0 {k0:.4g} (2 G_c / sigma_t = {linear:.4g})")
 
 
@@ -305,11 +301,12 @@ def _cohesive_lines(case: Case, mesh, materials, protected: np.ndarray) -> list[
     h, e_free = (sizes[free], e[free]) if free.any() else (sizes, e)
     median, largest = float(np.median(h)), float(h.max())
     # the median of k0 as the interface sets it (penalty E / h, floored)
-    k0 = max(float(np.median(law.penalty * e_free / h)), 2.0 * sigma**2 / gc)
+    faces = interface_recipe(f).law
+    k0 = max(float(np.median(law.penalty * e_free / h)), least_stiffness(faces))
     uniform = bool(np.all(e == e[0]))
     lcz = float(e.min()) * gc / sigma**2
     lines = [f"  cohesive   {law.law} law, G_c = {gc:.4g} {energy_unit}, "
-             f"{_critical_opening(law, sigma, gc, k0)}, shear weight {law.shear_weight:g}, "
+             f"{_critical_opening(faces, k0)}, shear weight {law.shear_weight:g}, "
              f"initial stiffness {law.penalty:g} x E / h",
              f"  cohesive length l_cz = E G_c / sigma_t^2 = {lcz:.4g} {length_unit}"
              + ("" if uniform else " (with the smallest E of the regions)")]
