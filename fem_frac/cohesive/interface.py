@@ -58,13 +58,15 @@ class InterfaceRecipe:
 class CohesiveState:
     """The faces' state at the interface points: ``kappa (q,)`` the largest effective
     opening reached, ``jump (q, 3)`` and ``traction (q, 3)``; ``stored`` and
-    ``dissipated``: their energies summed over the faces."""
+    ``dissipated``: their energies summed over the faces; ``secant (q, 3, 3)``: the law's
+    secant stiffness there (the same at the updated history), when the law gave it."""
 
     kappa: np.ndarray
     jump: np.ndarray
     traction: np.ndarray
     stored: float = 0.0
     dissipated: float = 0.0
+    secant: np.ndarray | None = None
 
 
 @dataclass(frozen=True, eq=False)
@@ -108,7 +110,7 @@ class Interface:
         jump = self.openings(u)
         r = self.law.response(jump, self.normals, kappa, self.stiffness)
         state = CohesiveState(r.kappa, jump, r.traction, float(self.weights @ r.stored),
-                              float(self.weights @ r.dissipated))
+                              float(self.weights @ r.dissipated), r.secant)
         return r, state
 
     def force(self, traction: np.ndarray) -> np.ndarray:
@@ -246,5 +248,5 @@ def carry_history(old: Interface | None, state: CohesiveState | None,
     jump[known] = state.jump[rows[known]]
     traction[known] = state.traction[rows[known]]
     r = new.law.response(jump, new.normals, kappa, new.stiffness)
-    return CohesiveState(kappa, jump, traction, float(new.weights @ r.stored),
-                         float(new.weights @ r.dissipated))
+    return CohesiveState(r.kappa, jump, traction, float(new.weights @ r.stored),
+                         float(new.weights @ r.dissipated), r.secant)

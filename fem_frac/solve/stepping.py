@@ -165,8 +165,9 @@ class ImplicitStepper:
         if interface is None:
             made = self.factor is None
             return self.elastic_factor(), made
-        response, _ = interface.respond(old.u, old.cohesive.kappa)
-        secant = response.secant
+        secant = old.cohesive.secant
+        if secant is None:
+            secant = interface.respond(old.u, old.cohesive.kappa)[0].secant
         if self.factor is not None and np.allclose(secant, self.secant, rtol=1e-12,
                                                    atol=0.0):
             return self.factor, False
@@ -316,7 +317,8 @@ class ImplicitStepper:
         faces)."""
         if self.tangents is None:
             self.tangents = Refactorizer(self.constrained.method)
-        stiffness = self.ops.stiffness if it.tangent is None else \
+        # an elastic bulk's tangent is the stiffness assembled once
+        stiffness = self.ops.stiffness if it.tangent is None or not self.law.plastic else \
             self.ops.strain_operator.stiffness(it.tangent)
         if it.cohesive_tangent is not None:
             faces = it.cohesive_secant if it.secant else it.cohesive_tangent
