@@ -10,9 +10,11 @@ from pathlib import Path
 import numpy as np
 
 from .. import __version__
+from ..config import schema
 from ..fracture.stage import FractureEvent
 from ..fracture.summary import CrackFaces, crack_faces, crack_openings
 from ..solve.discretization import Discretization
+from ..solve.loading import default_curve
 from ..solve.state import State, StepInfo
 from ..world.state import Body, World
 from ..writers.fields import plastic_fields, stress_fields, vtk_cells
@@ -209,6 +211,34 @@ def reaction_forces(disc: Discretization, state: State | None) -> dict[str, np.n
             for label, dofs in disc.problem.reaction_groups.items()}
 
 
+def applied_columns(disc: Discretization, t: float) -> dict:
+    """What the case applies at ``t``: the factor of every load curve (``curve_<name>``), the
+    total force of every load on the finite elements, its curve's factor times its resultant
+    at factor 1 (``load_<label>_<axis>``, the labels of
+    :attr:`~fem_frac.solve.problem.Problem.resultants`), and the value of every prescribed
+    displacement component, its curve's factor times the value in the case
+    (``prescribed_<label>_<axis>``: the boundary name, or ``boundary_conditions[i]``)."""
+    problem, recipe = disc.problem, disc.recipe
+    factors = problem.factors(t)
+    out = {f"curve_{name}": float(factors[c]) for c, name in enumerate(problem.curve_names)}
+    for label, (c, force) in problem.resultants.items():
+        for axis, value in zip("xyz", factors[c] * force, strict=True):
+            out[f"load_{label}_{axis}"] = float(value)
+    default = default_curve(recipe.analysis)
+    labels: set[str] = set()
+    for i, bc in enumerate(recipe.boundary_conditions):
+        if not isinstance(bc, schema.Displacement):
+            continue
+        label = bc.boundary if bc.boundary is not None and bc.boundary not in labels \
+            else f"boundary_conditions[{i}]"
+        labels.add(label)
+        factor = factors[problem.curve_names.index(bc.curve or default)]
+        for axis, value in zip("xyz", (bc.x, bc.y, bc.z), strict=True):
+            if value is not None:
+                out[f"prescribed_{label}_{axis}"] = float(factor * value)
+    return out
+
+
 def history_row(n: int, world: World, info: StepInfo, fracture: FractureEvent | None,
                 last: Body, wall: float, layout: Layout) -> dict:
     """One row of history.csv. ``last``: the body, or the last one once no finite element
@@ -227,6 +257,7 @@ def history_row(n: int, world: World, info: StepInfo, fracture: FractureEvent | 
     for label, total in reaction_forces(disc, state).items():
         for axis, value in zip("xyz", total, strict=True):
             row[f"reaction_{label}_{axis}"] = float(value)
+    row.update(applied_columns(disc, world.t))
     u = body.state.u if body is not None else np.zeros(0)
     row["max_displacement"] = float(np.linalg.norm(u.reshape(-1, 3), axis=1).max(initial=0.0))
     if disc.law.plastic:

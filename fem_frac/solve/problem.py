@@ -39,7 +39,10 @@ class Problem:
     ``tractions[c]`` and ``pressures[c]`` are its surface loads of each kind (tractions keep
     their world direction, pressures follow the face: what a rigid piece that takes their
     faces along needs, fem_frac.rigid.loads); ``reaction_groups`` maps a label (the
-    boundary name, or ``boundary_conditions[i]``) to the dofs whose reaction forces it sums.
+    boundary name, or ``boundary_conditions[i]``) to the dofs whose reaction forces it sums;
+    ``resultants`` maps a label of every load (its boundary name, ``boundary_conditions[i]``
+    where that name is taken, ``body_force``) to its curve index and its total force ``(3,)``
+    at curve factor 1 on this space (zero where its faces have left).
     """
 
     space: Space
@@ -51,6 +54,7 @@ class Problem:
     descriptions: list[str] = field(default_factory=list)
     tractions: np.ndarray | None = None  # (n_curves, n_dofs), None: no surface loads
     pressures: np.ndarray | None = None  # (n_curves, n_dofs)
+    resultants: dict[str, tuple[int, np.ndarray]] = field(default_factory=dict)
 
     def factors(self, t: float) -> np.ndarray:
         return np.array([c(t) for c in self.curves] or [0.0])
@@ -126,11 +130,15 @@ def build_problem(
     forces = np.zeros((len(names), space.n_dofs))
     surface = {schema.Traction: np.zeros_like(forces), schema.Pressure: np.zeros_like(forces)}
     groups: dict[str, np.ndarray] = {}
+    resultants: dict[str, tuple[int, np.ndarray]] = {}
     described, supports = [], []
     for i, bc in enumerate(conditions):
         facets = _select(space, bc, i, exterior, strict)
         label = _label(bc, i)
         timing = f", curve {names[curve_of[i]]}" if hasattr(bc, "curve") else ""
+        if isinstance(bc, _LOADS):
+            key = label if label not in resultants else f"boundary_conditions[{i}]"
+            resultants[key] = (int(curve_of[i]), np.zeros(3))
         if len(facets) == 0:  # (only when not strict)
             if not isinstance(bc, _LOADS):
                 groups[label] = np.zeros(0, dtype=np.int64)
@@ -138,6 +146,7 @@ def build_problem(
         elif isinstance(bc, _LOADS):
             load = _surface_force(space, bc, facets)
             forces[curve_of[i]] += load
+            resultants[key] = (int(curve_of[i]), load.reshape(-1, 3).sum(axis=0))
             kind = schema.Pressure if isinstance(bc, schema.Pressure) else schema.Traction
             surface[kind][curve_of[i]] += load
             described.append(f"{bc.type} on {label} ({len(facets)} faces{timing})")
@@ -148,10 +157,12 @@ def build_problem(
             fixed = "".join(AXES[c] for c in comps)
             described.append(f"{bc.type} ({fixed}) on {label} ({len(nodes)} nodes{timing})")
     if body_force is not None:
-        forces[curve_of[-1]] += _gravity(space, body_force, density)
+        weight = _gravity(space, body_force, density)
+        forces[curve_of[-1]] += weight
+        resultants["body_force"] = (int(curve_of[-1]), weight.reshape(-1, 3).sum(axis=0))
         described.append(f"gravity {tuple(body_force.gravity)}, curve {names[curve_of[-1]]}")
     return Problem(space, _constraints(supports), forces, curves, names, groups, described,
-                   surface[schema.Traction], surface[schema.Pressure])
+                   surface[schema.Traction], surface[schema.Pressure], resultants)
 
 
 # conditions that load the surface (the others prescribe displacements)
