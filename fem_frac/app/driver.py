@@ -14,7 +14,7 @@ import numpy as np
 from ..cohesive.interface import InterfaceRecipe
 from ..cohesive.law import TractionSeparation
 from ..config.schema import Case, DynamicAnalysis, StaticAnalysis
-from ..errors import CaseError, Interrupted, SolverError
+from ..errors import CaseError, Interrupted
 from ..mesh.build import build_mesh
 from ..solve.discretization import Discretization, Log, Recipe, discretize, quiet
 from ..solve.energy import initial_ledger
@@ -31,10 +31,11 @@ from ..writers.history import HistoryWriter
 from ..writers.paraview import view_scale, write_paraview_script
 from ..writers.series import SeriesWriter
 from .budget import BOUNDS, Bounds, check_budget
+from .initial import check_initial, first_state, initial_velocity  # noqa: F401 (re-export)
 from .output import OutputPlan, OutputStage, Progress, Tally, TallyStage
 from .reference import check_reference, recorder, reference_error
 from .results import CrackWriter, Layout, summary
-from .status import RunStatus, terminated_as_interrupt, write_json
+from .status import NUMERICAL, RunStatus, terminated_as_interrupt, write_json
 
 
 @dataclass(frozen=True, eq=False)
@@ -44,6 +45,7 @@ class Setup:
     case: Case
     grid: TimeGrid
     disc: Discretization
+    case_dir: Path = Path(".")  # where the case file lies (paths in it are relative to it)
 
     @property
     def dynamic(self) -> bool:
@@ -99,6 +101,7 @@ def prepare(case: Case, case_dir: Path, timer: StageTimer, log: Log = quiet,
     the case implies is refused over ``bounds`` (``None``: no bound) before meshing."""
     check_stages(case)
     check_reference(case)
+    check_initial(case, case_dir)
     check_budget(case, case_dir, bounds)
     with timer("mesh"):
         mesh = build_mesh(case.mesh, case_dir)
@@ -110,17 +113,7 @@ def prepare(case: Case, case_dir: Path, timer: StageTimer, log: Log = quiet,
     grid = time_grid(case.analysis)
     disc = discretize(recipe_of(case, grid.dt), mesh, timer, log=log)
     log(f"space      P{disc.space.order}, {disc.space.n_dofs:,} dofs")
-    return Setup(case, grid, disc)
-
-
-def initial_velocity(space, spec) -> np.ndarray | None:
-    """Nodal velocity ``(n_dofs,)`` of a uniform motion plus a rigid rotation."""
-    if spec is None:
-        return None
-    x = space.node_points
-    center = np.asarray(spec.center) if spec.center is not None else x.mean(axis=0)
-    v = np.asarray(spec.uniform) + np.cross(np.asarray(spec.angular_velocity), x - center)
-    return v.ravel()
+    return Setup(case, grid, disc, case_dir)
 
 
 def whole_body(case: Case) -> bool:
@@ -138,9 +131,8 @@ def start(setup: Setup, timer: StageTimer, log: Log = quiet) -> tuple[World, Tal
         solver, factorizations = factor.method, 1
         log(f"factorize  {factor.method}, {len(d.constrained.free):,} unknowns")
     with timer("initial state"):
-        v0 = initial_velocity(d.space, case.analysis.initial_velocity) if setup.dynamic \
-            else None
-        state = initial_state(d.problem, d.law, d.ops, v0, d.constrained)
+        state = first_state(case, d, setup.case_dir) if setup.dynamic else \
+            initial_state(d.problem, d.law, d.ops, None, d.constrained)
         if not setup.dynamic and (np.any(d.problem.external_force(0.0))
                                   or np.any(state.reaction)):
             # without inertia the state at t = 0 is the equilibrium under the loads at
@@ -214,36 +206,63 @@ def run_case(case: Case, case_path: Path, out_dir: Path, name: str, overwrite: b
 
     The resolved case and a summary marked ``running`` are written before the first step
     (:mod:`~fem_frac.app.status`); an interrupted or failed run marks the summary with the
-    step it reached and raises on (:class:`~fem_frac.errors.Interrupted`,
-    :class:`~fem_frac.errors.SolverError`), its output kept."""
+    step it reached and raises on (:class:`~fem_frac.errors.Interrupted`, the exception
+    that stopped it), its output kept. A numerical failure while discretizing (after
+    validation) claims the output directory too, so that every run that stops with exit 3
+    leaves ``summary.json`` and ``case.resolved.yaml``."""
     timer = StageTimer()
     check_directory(out_dir, name, overwrite)  # an occupied directory: before meshing
-    setup = prepare(case, case_path.parent, timer, log, bounds)
+    try:
+        setup = prepare(case, case_path.parent, timer, log, bounds)
+    except NUMERICAL as exc:
+        _, status = _claim(out_dir, name, overwrite, resolved_yaml, case_path,
+                           time_grid(case.analysis).steps)
+        status.fail(exc, {"wall_time_s": _wall(timer)})
+        raise
     # after validation (a bad case never touches earlier results), before the long stages
+    manifest, status = _claim(out_dir, name, overwrite, resolved_yaml, case_path,
+                              setup.grid.steps)
+    with terminated_as_interrupt():
+        try:
+            result = _run(setup, case_path, name, manifest, status, timer, log)
+        except (KeyboardInterrupt, Interrupted) as exc:
+            signum = exc.signum if isinstance(exc, Interrupted) else signal.SIGINT
+            status.record("interrupted", message=f"interrupted by {signal.Signals(signum).name}"
+                          f" at step {status.step} of {status.steps}; output so far kept")
+            raise Interrupted(signum, status.step, status.steps, out_dir) from None
+        except Exception as exc:  # every failure leaves its summary (then the CLI's exit)
+            status.fail(exc, _known(setup, case_path, status, timer))
+            raise
+    write_json(out_dir / "summary.json", result)
+    _warn_single_pass(case, setup, status.tally)
+    log(f"output     {result['output']['pvd']}")
+    return result
+
+
+def _claim(out_dir: Path, name: str, overwrite: bool, resolved_yaml: str | None,
+           case_path: Path, steps: int) -> tuple[Manifest, RunStatus]:
+    """Take the output directory: the resolved case and a summary marked ``running``."""
     prepare_directory(out_dir, name, overwrite)
     manifest = Manifest(out_dir)
     if resolved_yaml is not None:
         manifest.add("case.resolved.yaml").write_text(resolved_yaml)
     manifest.add("summary.json")
-    status = RunStatus(out_dir / "summary.json", case_path, setup.grid.steps)
+    status = RunStatus(out_dir / "summary.json", case_path, steps)
     status.record("running")
+    return manifest, status
+
+
+def _run(setup: Setup, case_path: Path, name: str, manifest: Manifest, status: RunStatus,
+         timer: StageTimer, log: Log) -> dict:
+    """The steps and the files of a run whose directory is claimed: its summary."""
+    case, out_dir = setup.case, manifest.directory
     ground = None
     if case.fragments is not None:  # the planes fragments rest on, once: they never move
         from ..rigid.stage import planes
 
         ground = write_ground(manifest, name, planes(case.fragments), setup.disc.mesh.points)
     series = SeriesWriter(out_dir, name, manifest=manifest)
-    with terminated_as_interrupt():
-        try:
-            world, tally, record = _march(setup, manifest, series, status, timer, log)
-        except (KeyboardInterrupt, Interrupted) as exc:
-            signum = exc.signum if isinstance(exc, Interrupted) else signal.SIGINT
-            status.record("interrupted", message=f"interrupted by {signal.Signals(signum).name}"
-                          f" at step {status.step} of {status.steps}; output so far kept")
-            raise Interrupted(signum, status.step, status.steps, out_dir) from None
-        except SolverError as exc:
-            status.record("failed", message=str(exc))
-            raise
+    world, tally, record = _march(setup, manifest, series, status, timer, log)
     result = _summary(case, case_path, setup, world, tally, timer, log, record)
     result["output"] = {"pvd": str(series.pvd_path), "steps": len(series.entries),
                         "history": str(out_dir / "history.csv")}
@@ -253,10 +272,30 @@ def run_case(case: Case, case_path: Path, out_dir: Path, name: str, overwrite: b
         case.fracture is not None and case.output.crack_surface, ground=ground is not None))
     if ground is not None:
         result["output"]["ground"] = str(ground)
-    write_json(out_dir / "summary.json", result)
-    _warn_single_pass(case, setup, tally)
-    log(f"output     {series.pvd_path}")
     return result
+
+
+def _known(setup: Setup, case_path: Path, status: RunStatus, timer: StageTimer) -> dict:
+    """What the summary of a failed run can say: the summary of its last completed step
+    (counts, costs and energies of the steps completed) and the wall times so far."""
+    d = setup.disc
+    known = {"counts": {"vertices": d.mesh.n_points, "nodes": d.space.n_nodes,
+                        "elements": d.mesh.n_tets, "dofs": d.space.n_dofs,
+                        "constrained_dofs": int(len(d.problem.constraints.dofs)),
+                        "element_order": d.space.order,
+                        "formulation": setup.case.mesh.formulation}}
+    if status.world is not None and status.tally is not None:
+        try:
+            known = summary(setup.case, case_path, setup.grid, status.world, status.tally)
+        except Exception:  # noqa: BLE001 (the failure is reported, whatever this one is)
+            pass
+    known["wall_time_s"] = _wall(timer)
+    return known
+
+
+def _wall(timer: StageTimer) -> dict:
+    return {**{k: round(v, 6) for k, v in timer.seconds.items()},
+            "total": round(timer.total(), 6)}
 
 
 def _march(setup: Setup, manifest: Manifest, series: SeriesWriter, status: RunStatus,
@@ -267,6 +306,7 @@ def _march(setup: Setup, manifest: Manifest, series: SeriesWriter, status: RunSt
     cracks = CrackWriter(SeriesWriter(out_dir, f"{series.name}_crack", manifest=manifest)) \
         if case.fracture is not None and case.output.crack_surface else None
     world, tally = start(setup, timer, log)
+    status.tally = tally
     record = recorder(case, setup.disc.problem)
     observers = ((record,) if record is not None else ()) + (status,)
     with HistoryWriter(manifest.add("history.csv")) as history:
@@ -281,8 +321,7 @@ def _march(setup: Setup, manifest: Manifest, series: SeriesWriter, status: RunSt
 def _summary(case: Case, case_path: Path, setup: Setup, world: World, tally: Tally,
              timer: StageTimer, log: Log, record) -> dict:
     result = {"status": "completed", **summary(case, case_path, setup.grid, world, tally)}
-    result["wall_time_s"] = {**{k: round(v, 6) for k, v in timer.seconds.items()},
-                             "total": round(timer.total(), 6)}
+    result["wall_time_s"] = _wall(timer)
     if case.reference is not None:
         body = world.body or tally.body
         ref = reference_error(case, setup.grid, body.disc, body.state, record)

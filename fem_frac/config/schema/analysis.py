@@ -4,9 +4,11 @@ from __future__ import annotations
 
 from typing import Annotated, Literal
 
-from pydantic import Field, model_validator
+from pydantic import Field, ValidationInfo, field_validator, model_validator
 
-from .base import NonNegativeFloat, PositiveFloat, PositiveInt, Section, Vector3
+from ..expression import parse
+from .base import FiniteFloat, NonNegativeFloat, PositiveFloat, PositiveInt, Section, Vector3
+from .loads import BoundaryCondition
 
 LinearSolver = Literal["auto", "pardiso", "cholmod", "superlu"]
 
@@ -88,6 +90,83 @@ class InitialVelocity(Section):
     center: Vector3 | None = None
 
 
+class Preload(Section):
+    """Supports and loads solved statically before t = 0 and removed at t = 0+: the body
+    starts at rest in that equilibrium (a plucked string, a released spring). The case's own
+    supports hold during the preload (where both prescribe a dof, the case's value wins) and,
+    with ``case_loads``, the case's loads at t = 0 act too; ``steps`` load steps reach the
+    preload (more for a plastic one)."""
+
+    boundary_conditions: list[BoundaryCondition] = Field(min_length=1)
+    case_loads: bool = True
+    steps: PositiveInt = 1
+
+    @field_validator("boundary_conditions")
+    @classmethod
+    def _no_curve(cls, conditions):
+        for bc in conditions:
+            if getattr(bc, "curve", None) is not None:
+                raise ValueError("a preload acts at its full value: no 'curve' (it is "
+                                 "reached in 'steps' load steps and removed at t = 0+)")
+        return conditions
+
+
+AXIS_NAMES = ("x", "y", "z")
+
+
+class DisplacementField(Section):
+    """u0(x, y, z) per component: an arithmetic expression of the coordinates ``x``, ``y``,
+    ``z``, the named ``constants``, ``pi`` and ``e`` (``+ - * / **``, parentheses and
+    functions such as ``sin``, ``exp``, ``sqrt``: fem_frac/config/expression.py); an
+    omitted component is 0. Never evaluated as Python."""
+
+    constants: dict[str, FiniteFloat] = {}  # before x, y, z: their validator reads it
+    x: str = "0"
+    y: str = "0"
+    z: str = "0"
+
+    @field_validator("constants")
+    @classmethod
+    def _names(cls, constants):
+        for name in constants:
+            if not name.isidentifier() or name in AXIS_NAMES:
+                raise ValueError(f"'{name}' cannot name a constant (a name like L or "
+                                 "amplitude, not x, y or z)")
+        return constants
+
+    @field_validator("x", "y", "z")
+    @classmethod
+    def _expression(cls, text: str, info: ValidationInfo) -> str:
+        parse(text, set(AXIS_NAMES) | set(info.data.get("constants", {})))
+        return text
+
+
+class FromRun(Section):
+    """The last state written by an earlier run (its output directory): displacement, and
+    velocity with ``velocity: true``, matched node by node by reference coordinates."""
+
+    directory: str
+    velocity: bool = False
+
+
+class InitialDisplacement(Section):
+    """Where the body starts: give one of ``preload`` (a static preload, released at
+    t = 0+), ``field`` (expressions of x, y, z) or ``from_run`` (an earlier run's last
+    state). The initial acceleration balances the initial state."""
+
+    preload: Preload | None = None
+    field: DisplacementField | None = None
+    from_run: FromRun | None = None
+
+    @model_validator(mode="after")
+    def _one(self):
+        given = [k for k in ("preload", "field", "from_run") if getattr(self, k) is not None]
+        if len(given) != 1:
+            raise ValueError("give exactly one of 'preload', 'field' or 'from_run'"
+                             + (f" (got {', '.join(given)})" if given else ""))
+        return self
+
+
 class DynamicAnalysis(_Stepped):
     """Transient dynamics. ``newmark``: implicit, average acceleration by default (beta 1/4,
     gamma 1/2: no numerical damping); ``hht``: implicit HHT-alpha, ``alpha`` in [-1/3, 0]
@@ -104,6 +183,7 @@ class DynamicAnalysis(_Stepped):
     )
     rayleigh: RayleighDamping | None = None
     initial_velocity: InitialVelocity | None = None
+    initial_displacement: InitialDisplacement | None = None
     substeps: bool = Field(
         default=False,
         description="explicit only: split each step into enough substeps to stay below "
@@ -119,6 +199,11 @@ class DynamicAnalysis(_Stepped):
             raise ValueError(f"beta and gamma are for newmark; {self.integrator} sets its own")
         if self.gamma is not None and self.gamma < 0.5:
             raise ValueError("gamma < 1/2 adds energy (unstable); use gamma >= 1/2")
+        start = self.initial_displacement
+        if start is not None and start.from_run is not None and start.from_run.velocity \
+                and self.initial_velocity is not None:
+            raise ValueError("the initial velocity comes from initial_displacement.from_run "
+                             "(velocity: true) or from initial_velocity, not both")
         return self
 
     @property
