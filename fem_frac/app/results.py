@@ -17,7 +17,7 @@ from ..solve.discretization import Discretization
 from ..solve.loading import default_curve
 from ..solve.state import State, StepInfo
 from ..world.state import Body, World
-from ..writers.fields import plastic_fields, stress_fields, vtk_cells
+from ..writers.fields import plastic_fields, plastic_point_fields, stress_fields, vtk_cells
 from ..writers.series import SeriesWriter
 
 
@@ -43,6 +43,7 @@ def frame(disc: Discretization, body: Body, layout: Layout):
     cell_data = stress_fields(space, stress)
     if plastic is not None:
         cell_data.update(plastic_fields(space, plastic))
+        point_data.update(plastic_point_fields(space, plastic))
     if layout.pieces:
         cell_data["fragment_id"] = labels.astype(np.int32)
     for name, values in fields.items():

@@ -1,4 +1,9 @@
-"""Fields people colour by, computed from quadrature-point state for output."""
+"""Fields people colour by, computed from quadrature-point state for output.
+
+Quadrature-point fields are written as cell data (the volume-weighted mean over each tet's
+points) and, for the plastic state, also as point data (:func:`nodal_average`): the value at
+a node is the volume-weighted mean of the elements around it, which for P1 is the lumped-mass
+L2 projection of the cell field onto the nodes."""
 
 from __future__ import annotations
 
@@ -13,6 +18,34 @@ def cell_average(space: Space, qp: np.ndarray) -> np.ndarray:
     n_tets)``."""
     dx = space.basis.dx
     return np.einsum("meq,eq->me", qp, dx) / dx.sum(axis=1)
+
+
+def nodal_average(space: Space, qp: np.ndarray) -> np.ndarray:
+    """Point values ``(m, n_nodes)`` of a quadrature-point field ``(m, n_tets, n_qp)``: at
+    node ``a`` the integral of the field over the elements ``e`` around ``a`` divided by
+    their volume, ``sum_e int_e f / sum_e V_e`` (each element's mean weighted by its volume;
+    P2: the ten nodes of an element, mid-edge nodes too).
+
+    A constant field is reproduced exactly. A linear field ``f`` comes out as
+    ``f(c_a)``, ``c_a`` the volume-weighted mean of the centroids of the elements around
+    ``a`` (the quadrature of P1 and P2 integrates it exactly): exact where ``c_a`` is the
+    node (a patch symmetric about it), off by ``grad f . (c_a - x_a)`` elsewhere, a bias of
+    order the element size at the boundary, where the patch lies on one side of the node.
+    Extrema of the elements are flattened (the mean of a peak element and its neighbours).
+    For P1 this is the L2 projection onto the nodes with the lumped (row-sum) mass matrix:
+    ``int phi_a f / int phi_a`` with ``int_e phi_a = V_e / 4``."""
+    dx = space.basis.dx
+    nodes = space.basis.element_dofs  # (n_local, n_tets)
+    index = nodes.ravel()
+
+    def spread(x: np.ndarray) -> np.ndarray:  # an element's value to each of its nodes
+        return np.broadcast_to(x, nodes.shape).ravel()
+
+    volume = np.bincount(index, weights=spread(dx.sum(axis=1)), minlength=space.n_nodes)
+    integrals = np.einsum("meq,eq->me", qp, dx)
+    total = np.stack([np.bincount(index, weights=spread(x), minlength=space.n_nodes)
+                      for x in integrals])
+    return np.divide(total, volume, out=np.zeros_like(total), where=volume > 0)
 
 
 def stress_fields(space: Space, stress: np.ndarray) -> dict[str, np.ndarray]:
@@ -39,6 +72,16 @@ def plastic_fields(space: Space, state) -> dict[str, np.ndarray]:
         back = cell_average(space, state.backstress)
         fields["backstress"] = np.ascontiguousarray(tensor_from_mandel(back).T)
     return fields
+
+
+def plastic_point_fields(space: Space, state) -> dict[str, np.ndarray]:
+    """Point data of a plastic state (:func:`nodal_average`, beside the cell data of
+    :func:`plastic_fields`): ``equivalent_plastic_strain_nodal`` and ``plastic_strain_nodal``
+    (6 tensor components, VTK order)."""
+    alpha = nodal_average(space, state.equivalent_plastic_strain[None])[0]
+    strain = nodal_average(space, state.plastic_strain)
+    return {"equivalent_plastic_strain_nodal": alpha,
+            "plastic_strain_nodal": np.ascontiguousarray(tensor_from_mandel(strain).T)}
 
 
 def vtk_cells(space: Space) -> tuple[str, np.ndarray]:
