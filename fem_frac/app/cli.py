@@ -226,27 +226,20 @@ def _overflow_stops():
 def _stage_of(exc: BaseException) -> str:
     """``step n, stage s: `` of the step loop's frame ``exc`` passed through, unless the
     message says so already (a numerical failure deep in shared code knows neither)."""
-    if str(exc).startswith("step "):
-        return ""
-    tb, found = exc.__traceback__, ""
-    while tb is not None:
-        frame = tb.tb_frame
-        if frame.f_code.co_name == "march" and "stage" in frame.f_locals:
-            name = getattr(frame.f_locals["stage"], "name", None)
-            found = f"step {frame.f_locals.get('n', '?')}, stage {name}: " if name else found
-        tb = tb.tb_next
-    return found
+    from .status import stage_of
+
+    return stage_of(exc)
 
 
 def _unexpected(exc: Exception, args) -> int:
     """An exception no check foresaw: a numerical one (overflow, LAPACK) is exit 3 like a
     SolverError; anything else exit 1, reported as an internal error in one line."""
-    import numpy as np
+    from .status import NUMERICAL, failure_message
 
-    text = f"{type(exc).__name__}: {exc}"
-    if isinstance(exc, (ArithmeticError, np.linalg.LinAlgError, RuntimeWarning)):
-        _error(f"{args.case}: {_stage_of(exc)}numerical failure: {text}")
+    if isinstance(exc, NUMERICAL):
+        _error(f"{args.case}: {failure_message(exc)}")
         return 3
+    text = f"{type(exc).__name__}: {exc}"
     _error(f"{args.case}: internal error ({text}); please report it with the case file")
     return 1
 
