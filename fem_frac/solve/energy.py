@@ -88,12 +88,31 @@ def _full_force(problem, t: float, reaction: np.ndarray) -> np.ndarray:
     return f
 
 
-def account(ledger: Ledger, old: State, new: State, problem, law, ops: Operators) -> Ledger:
-    """The ledger after the step ``old -> new`` (trapezoidal works)."""
+def support_kinetic(state: State, ops: Operators, fixed: np.ndarray) -> float:
+    """Kinetic energy ``v_c m_c v_c / 2`` of the constrained dofs' own (diagonal) masses."""
+    if ops.mass is None:
+        return 0.0
+    v = state.v[fixed]
+    return 0.5 * float(v @ (ops.mass.diagonal()[fixed] * v))
+
+
+def account(ledger: Ledger, old: State, new: State, problem, law, ops: Operators,
+            support_inertia: bool = True) -> Ledger:
+    """The ledger after the step ``old -> new`` (trapezoidal works).
+
+    ``support_inertia``: the reactions include the inertia of the constrained dofs, as the
+    implicit steppers' do (``M a`` on their rows). An explicit step's reactions are the
+    force the body transmits (``f_int - f_ext`` there): the supports' own lumped masses
+    move as prescribed, and the work the driver does on them is the change of their
+    kinetic energy, booked here as such (see docs/dynamics.md, Energy).
+    """
     du = new.u - old.u
     f_old = _full_force(problem, old.t, old.reaction)
     f_new = _full_force(problem, new.t, new.reaction)
     external = ledger.external_work + 0.5 * (f_old + f_new) @ du
+    if not support_inertia:
+        fixed = problem.constraints.dofs
+        external += support_kinetic(new, ops, fixed) - support_kinetic(old, ops, fixed)
     damping = ledger.damping_work
     if ops.damping is not None:
         damping += 0.5 * (ops.damping @ (old.v + new.v)) @ du

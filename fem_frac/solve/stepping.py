@@ -439,7 +439,8 @@ def advance(stepper: Stepper, state: State, end: float, ledger: Ledger,
             cutbacks += 1
             continue
         pending.pop()
-        ledger = account(ledger, state, new, stepper.problem, stepper.law, stepper.ops)
+        ledger = account(ledger, state, new, stepper.problem, stepper.law, stepper.ops,
+                         support_inertia=not isinstance(stepper, ExplicitStepper))
         state = new
         total = total.then(info)
     return state, ledger, StepInfo(total.iterations, total.residual, total.solves,
