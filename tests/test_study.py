@@ -147,13 +147,37 @@ def test_failed_run_recorded(tmp_path, capsys):
     study = STUDY.replace("mesh.element_size: [0.2, 0.14, 0.098]",
                           "mesh.element_size: [0.25]\n  material.poissons_ratio: [0.3, 0.7]")
     path = _write(tmp_path, study)
-    assert main(["study", str(path), "-o", str(tmp_path / "out"), "--workers", "2"]) == 0
+    assert main(["study", str(path), "-o", str(tmp_path / "out"), "--workers", "2"]) == 1
     assert "FAILED (exit 2)" in capsys.readouterr().err
     rows = _rows(tmp_path / "out" / "study.csv")
     assert [r["status"] for r in rows] == ["ok", "failed"]
     assert rows[1]["exit_code"] == "2"
     assert "poissons_ratio" in rows[1]["message"] and "0.5" in rows[1]["message"]
     assert rows[1]["error"] == ""
+
+
+def test_a_study_with_failing_runs_exits_non_zero(tmp_path, capsys):
+    """A run that stops with exit 3 (E = 1e-300: its matrix cannot be factorized) fails the
+    study (exit 1, the run named on stderr even with -q); run again into the same
+    directory, the failed run (its summary marked failed) is run again and reported, the
+    completed one kept, and nothing reads the short summary as a completed one."""
+    study = STUDY.replace("mesh.element_size: [0.2, 0.14, 0.098]",
+                          "mesh.element_size: [0.25]\n  material.youngs_modulus: [210e9, 1e-300]")
+    path = _write(tmp_path, study)
+    out = tmp_path / "out"
+    for _attempt in range(2):  # the second time into the same directory
+        assert main(["study", str(path), "-o", str(out), "-q"]) == 1
+        err = capsys.readouterr().err.strip().splitlines()
+        bad = [r for r in _rows(out / "study.csv") if r["status"] == "failed"]
+        assert len(bad) == 1 and bad[0]["exit_code"] == "3", bad
+        run = out / "runs" / bad[0]["run_id"]
+        assert err == [f"error: run {bad[0]['run_id']} failed (exit 3, stopped after step 0 "
+                       f"of 1): {bad[0]['message']}"], err
+        assert json.loads((run / "summary.json").read_text())["status"] == "failed"
+        assert bad[0]["last_step"] == "0" and float(bad[0]["wall_time_s"]) > 0
+        assert (run / "case.resolved.yaml").is_file()
+    info = json.loads((out / "study.json").read_text())
+    assert info["failed"] == [bad[0]["run_id"]] and info["runs"] == 2
 
 
 @pytest.mark.parametrize(

@@ -3,7 +3,8 @@ of runs (:mod:`fem_frac.app.study`), ``plot`` a run's history (:mod:`fem_frac.ap
 
 Exit codes: 0 success; 2 bad input (case file, mesh, options, a body left free to move), with
 a one-line message and no traceback; 3 a numerical failure (singular system, non-finite
-state), output so far kept.
+state), output so far kept. ``study`` exits 1 when any of its runs failed (each named on
+stderr; the study's outputs are written), 2 for a bad study file.
 """
 
 from __future__ import annotations
@@ -106,7 +107,8 @@ def _study_parser(sub) -> None:
         "its own, as `fem-frac run` with --set overrides), then write study.csv (wall time, "
         "peak memory, error per run), study.json (convergence rates, Pareto front) and "
         "study.png (error against wall time, log-log; needs matplotlib). Runs whose "
-        "summary.json exists are kept, so an interrupted study resumes. See docs/studies.md.",
+        "summary.json says completed are kept, so an interrupted study resumes (failed runs are "
+        "run again). Exits 1 when any run failed, naming each. See docs/studies.md.",
     )
     study.add_argument("study", type=Path, help="study file (YAML)")
     study.add_argument("-o", "--output", metavar="DIR",
@@ -311,7 +313,7 @@ def _check_output_directory(case, args, out_dir: Path, name: str) -> None:
 
 def _study(args) -> int:
     from ..config import CaseErrors
-    from .study import StudyErrors, load_study, run_study, write_outputs
+    from .study import StudyErrors, failure_line, load_study, run_study, write_outputs
 
     if args.workers is not None and args.workers < 1:
         print(f"error: --workers {args.workers}: must be >= 1", file=sys.stderr)
@@ -344,7 +346,9 @@ def _study(args) -> int:
     log(f"done       {len(results) - len(failed)}/{len(results)} runs ok"
         + (f", {len(failed)} failed (see study.csv)" if failed else "")
         + f"; {outcome.csv}" + (f", {outcome.png}" if outcome.png else ""))
-    return 0
+    for r in failed:  # even with -q: a study with failed runs exits 1 and says which
+        _error(failure_line(r))
+    return 1 if failed else 0
 
 
 if __name__ == "__main__":

@@ -12,8 +12,10 @@ resident memory (``ru_maxrss``) is its own. The study writes
   the Pareto front;
 - ``study.png``: error against wall time, log-log, one line per method (needs matplotlib).
 
-A study is resumable: a run whose ``summary.json`` exists is not run again. A failed run is
-recorded (exit code and message) and does not stop the study.
+A study is resumable: a run whose ``summary.json`` says it completed is not run again (one
+that failed, was interrupted or killed is run again). A failed run is recorded (exit code,
+message, the last step it completed) and does not stop the study; ``fem-frac study`` then
+names every failed run on stderr and exits 1 once the outputs are written.
 
 The error of a run is either the relative error against the exact solution the case
 declares (``error: reference``, from ``summary.json``), or, for ``error: {quantity: NAME}``,
@@ -35,7 +37,7 @@ from .analysis import (
     summary_value,
 )
 from .output import MATPLOTLIB_HINT, Outcome, plot, study_json, write_csv, write_outputs
-from .runs import Result, execute, run_study
+from .runs import Result, execute, failure_line, run_study
 from .spec import (
     SIZE_KEY,
     Axis,
@@ -64,6 +66,7 @@ __all__ = [
     "convergence_rate",
     "evaluate",
     "execute",
+    "failure_line",
     "load_study",
     "method_label",
     "methods",

@@ -26,13 +26,13 @@ def write_csv(study: Study, results: list[Result], path: Path) -> None:
         s for r in results if r.ok for s in r.summary["wall_time_s"] if s != "total"))
     cols = (["run_id", *study.keys, "method", "status", "exit_code", "dofs", "elements", "h",
              "wall_time_s", *(f"time_{s.replace(' ', '_')}_s" for s in stages), "peak_mib",
-             "quantity", "value", "reference_value", "error", "message"])
+             "quantity", "value", "reference_value", "error", "last_step", "message"])
     quantity = study.quantity or "reference"
     f = io.StringIO(newline="")
     w = csv.writer(f)
     w.writerow(cols)
     for r in results:
-        s = r.summary or {}
+        s = r.summary or r.partial or {}
         wt = s.get("wall_time_s", {})
         if r.ok and study.quantity is None and "reference" in s:
             quantity = s["reference"]["quantity"]
@@ -42,7 +42,7 @@ def write_csv(study: Study, results: list[Result], path: Path) -> None:
             r.dofs, s.get("counts", {}).get("elements"), _fmt(r.h),
             _fmt(wt.get("total")), *(_fmt(wt.get(st)) for st in stages), _fmt(r.peak_mib),
             quantity if r.ok else "", _fmt(r.value), _fmt(r.reference), _fmt(r.error),
-            r.message,
+            _fmt(r.last_step), r.message,
         ])
     replace_file(path, f.getvalue())
 

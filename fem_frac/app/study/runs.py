@@ -35,6 +35,7 @@ class Result:
     value: float | None = None  # the study quantity of this run
     reference: float | None = None  # the value it is compared with
     error: float | None = None
+    partial: dict | None = None  # the summary a run that stopped left (how far it got)
 
     @property
     def ok(self) -> bool:
@@ -42,11 +43,18 @@ class Result:
 
     @property
     def wall_s(self) -> float | None:
-        return self.summary["wall_time_s"]["total"] if self.summary else None
+        """Wall time of the run (of a failed one: until it stopped), when its summary
+        says."""
+        return (self.summary or self.partial or {}).get("wall_time_s", {}).get("total")
 
     @property
     def dofs(self) -> int | None:
-        return self.summary["counts"]["dofs"] if self.summary else None
+        return (self.summary or self.partial or {}).get("counts", {}).get("dofs")
+
+    @property
+    def last_step(self) -> int | None:
+        """The last step a failed run completed (from its summary), else ``None``."""
+        return None if self.ok or self.partial is None else self.partial.get("step")
 
     @property
     def h(self) -> float | None:
@@ -139,9 +147,8 @@ def execute(case_path: str, run_dir: str, overrides: tuple[str, ...],
     return record
 
 
-def _load_summary(run_dir: Path) -> dict | None:
-    """The summary of a run that completed; ``None`` for one to (re)run: never run, or
-    stopped (its summary says how far it got, ``status`` running, failed or interrupted)."""
+def _read_summary(run_dir: Path) -> dict | None:
+    """The run's ``summary.json`` as written, ``None`` when there is none to read."""
     p = run_dir / "summary.json"
     if not p.is_file():
         return None
@@ -149,7 +156,14 @@ def _load_summary(run_dir: Path) -> dict | None:
         summary = json.loads(p.read_text())
     except (OSError, ValueError):
         return None
-    return summary if summary.get("status") == "completed" else None
+    return summary if isinstance(summary, dict) else None
+
+
+def _load_summary(run_dir: Path) -> dict | None:
+    """The summary of a run that completed; ``None`` for one to (re)run: never run, or
+    stopped (its summary says how far it got, ``status`` running, failed or interrupted)."""
+    summary = _read_summary(run_dir)
+    return summary if summary is not None and summary.get("status") == "completed" else None
 
 
 def _record(run_dir: Path) -> dict:
@@ -256,9 +270,22 @@ def _result(run: Run, fut: cf.Future, runs_dir: Path) -> Result:
     summary = _load_summary(runs_dir / run.run_id) if rec["exit_code"] == 0 else None
     res = Result(run, "ok" if summary else "failed", rec["exit_code"],
                  rec.get("message", ""), rec.get("peak_mib"), summary)
+    if summary is None:  # what the run's own summary says of how far it got
+        res.partial = _read_summary(runs_dir / run.run_id)
+        if res.partial is not None and res.partial.get("status") == "completed":
+            res.partial = None  # an earlier run's summary, not this one's
     if rec["exit_code"] == 0 and summary is None:
         res.message = "exit 0 but no summary.json"
     return res
+
+
+def failure_line(r: Result) -> str:
+    """One line naming a failed run: id, exit code, how far it got, the message."""
+    code = f"exit {r.exit_code}" if r.exit_code is not None else "crashed"
+    step = r.last_step
+    where = (f", stopped after step {step} of {r.partial.get('steps')}"
+             if step is not None else "")
+    return f"run {r.run.run_id} failed ({code}{where}): {r.message}"
 
 
 def _progress(i: int, n: int, r: Result) -> str:
