@@ -33,6 +33,7 @@ from ..writers.series import SeriesWriter
 from .budget import BOUNDS, Bounds, check_budget
 from .initial import check_initial, first_state, initial_velocity  # noqa: F401 (re-export)
 from .output import OutputPlan, OutputStage, Progress, Tally, TallyStage
+from .probes import check_probes, probe_recorder
 from .reference import check_reference, recorder, reference_error
 from .results import CrackWriter, Layout, summary
 from .status import NUMERICAL, RunStatus, terminated_as_interrupt, write_json
@@ -112,6 +113,7 @@ def prepare(case: Case, case_dir: Path, timer: StageTimer, log: Log = quiet,
         protected_vertices(case.fracture, mesh)  # names and boxes checked here
     grid = time_grid(case.analysis)
     disc = discretize(recipe_of(case, grid.dt), mesh, timer, log=log)
+    check_probes(case, disc)
     log(f"space      P{disc.space.order}, {disc.space.n_dofs:,} dofs")
     return Setup(case, grid, disc, case_dir)
 
@@ -266,6 +268,8 @@ def _run(setup: Setup, case_path: Path, name: str, manifest: Manifest, status: R
     result = _summary(case, case_path, setup, world, tally, timer, log, record)
     result["output"] = {"pvd": str(series.pvd_path), "steps": len(series.entries),
                         "history": str(out_dir / "history.csv")}
+    if case.probes:
+        result["output"]["probes"] = str(out_dir / f"{name}_probes.csv")
     manifest.add(f"{name}_view.py")
     result["output"]["view"] = str(write_paraview_script(
         out_dir, name, view_scale(result["max_displacement"], setup.disc.mesh.points),
@@ -308,7 +312,8 @@ def _march(setup: Setup, manifest: Manifest, series: SeriesWriter, status: RunSt
     world, tally = start(setup, timer, log)
     status.tally = tally
     record = recorder(case, setup.disc.problem)
-    observers = ((record,) if record is not None else ()) + (status,)
+    probes = probe_recorder(case, manifest, series.name)
+    observers = tuple(o for o in (record, probes) if o is not None) + (status,)
     with HistoryWriter(manifest.add("history.csv")) as history:
         output = OutputStage(output_plan(case, setup.grid), layout_of(case), series, history,
                              tally, timer, cracks, Progress(log, setup.grid.steps), observers)

@@ -13,10 +13,12 @@ from ..fem.space import Space
 from ..fem.tensors import principal_values, tensor_from_mandel, von_mises
 
 
-def cell_average(space: Space, qp: np.ndarray) -> np.ndarray:
+def cell_average(space: Space, qp: np.ndarray, cells: np.ndarray | None = None) -> np.ndarray:
     """Volume-weighted mean over each tet's quadrature points: ``(m, n_tets, n_qp)`` -> ``(m,
-    n_tets)``."""
+    n_tets)``; of the tets ``cells`` only when given (``(m, len(cells))``)."""
     dx = space.basis.dx
+    if cells is not None:
+        qp, dx = qp[:, cells], dx[cells]
     return np.einsum("meq,eq->me", qp, dx) / dx.sum(axis=1)
 
 
@@ -48,10 +50,12 @@ def nodal_average(space: Space, qp: np.ndarray) -> np.ndarray:
     return np.divide(total, volume, out=np.zeros_like(total), where=volume > 0)
 
 
-def stress_fields(space: Space, stress: np.ndarray) -> dict[str, np.ndarray]:
+def stress_fields(space: Space, stress: np.ndarray,
+                  cells: np.ndarray | None = None) -> dict[str, np.ndarray]:
     """Cell data from the Mandel stress ``(6, n_tets, n_qp)``: the tensor (6 components,
-    VTK order XX YY ZZ XY YZ XZ), ``von_mises`` and ``max_principal_stress``."""
-    mean = cell_average(space, stress)
+    VTK order XX YY ZZ XY YZ XZ), ``von_mises`` and ``max_principal_stress``; of the tets
+    ``cells`` only when given."""
+    mean = cell_average(space, stress, cells)
     return {
         "stress": np.ascontiguousarray(tensor_from_mandel(mean).T),
         "von_mises": von_mises(mean),
@@ -59,17 +63,19 @@ def stress_fields(space: Space, stress: np.ndarray) -> dict[str, np.ndarray]:
     }
 
 
-def plastic_fields(space: Space, state) -> dict[str, np.ndarray]:
+def plastic_fields(space: Space, state,
+                   cells: np.ndarray | None = None) -> dict[str, np.ndarray]:
     """Cell data of a plastic state: ``plastic_strain`` (6 tensor components, VTK order),
-    ``equivalent_plastic_strain`` and, with kinematic hardening, ``backstress``."""
-    mean = cell_average(space, state.plastic_strain)
-    alpha = cell_average(space, state.equivalent_plastic_strain[None])[0]
+    ``equivalent_plastic_strain`` and, with kinematic hardening, ``backstress``; of the tets
+    ``cells`` only when given."""
+    mean = cell_average(space, state.plastic_strain, cells)
+    alpha = cell_average(space, state.equivalent_plastic_strain[None], cells)[0]
     fields = {
         "plastic_strain": np.ascontiguousarray(tensor_from_mandel(mean).T),
         "equivalent_plastic_strain": alpha,
     }
     if state.backstress is not None:
-        back = cell_average(space, state.backstress)
+        back = cell_average(space, state.backstress, cells)
         fields["backstress"] = np.ascontiguousarray(tensor_from_mandel(back).T)
     return fields
 

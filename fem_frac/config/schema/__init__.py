@@ -7,8 +7,8 @@ misspelt key is an error, never silently ignored. Units are the case's consisten
 One module per part of the case: :mod:`.base` (common types, the box selection),
 :mod:`.geometry` (``mesh``), :mod:`.material` (``material``, ``regions``, ``plasticity``),
 :mod:`.loads` (``load_curves``, ``boundary_conditions``, ``body_force``), :mod:`.analysis`,
-:mod:`.fracture` (``fracture``, ``fragments``) and :mod:`.case` (``output``, ``reference``,
-the whole :class:`Case`). Every name is importable from here.
+:mod:`.fracture` (``fracture``, ``fragments``), :mod:`.probes` (``probes``) and :mod:`.case`
+(``output``, ``reference``, the whole :class:`Case`). Every name is importable from here.
 """
 
 from .analysis import (
@@ -60,11 +60,13 @@ from .loads import (
     Traction,
 )
 from .material import Material, Plasticity, Region
+from .probes import PROBE_FIELDS, Probe
 
 __all__ = [
     "BUILTIN_CURVES",
     "NEWMARK_BETA",
     "NEWMARK_GAMMA",
+    "PROBE_FIELDS",
     "UNIT_SYSTEMS",
     "Analysis",
     "BodyForce",
@@ -100,6 +102,7 @@ __all__ = [
     "PositiveInt",
     "PositiveVector3",
     "Pressure",
+    "Probe",
     "Protect",
     "QuasiStaticAnalysis",
     "RampCurve",

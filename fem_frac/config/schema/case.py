@@ -12,6 +12,7 @@ from .fracture import Fracture, Fragments
 from .geometry import MeshSection
 from .loads import BodyForce, BoundaryCondition, LoadCurve
 from .material import Material, Plasticity, Region
+from .probes import MAX_PROBES, Probe
 
 
 class Output(Section):
@@ -85,3 +86,6 @@ class Case(Section):
     fragments: Fragments | None = None
     reference: Reference | None = None
     output: Output = Output()
+    probes: list[Probe] = Field(
+        default=[], max_length=MAX_PROBES, description="points and boundaries whose fields "
+        "are written at every step to <name>_probes.csv")
