@@ -32,6 +32,7 @@ from ..writers.paraview import view_scale, write_paraview_script
 from ..writers.series import SeriesWriter
 from .budget import BOUNDS, Bounds, check_budget
 from .initial import check_initial, first_state, initial_velocity  # noqa: F401 (re-export)
+from .locking import locking_warnings
 from .output import OutputPlan, OutputStage, Progress, Tally, TallyStage
 from .probes import check_probes, probe_recorder
 from .reference import check_reference, recorder, reference_error
@@ -221,6 +222,7 @@ def run_case(case: Case, case_path: Path, out_dir: Path, name: str, overwrite: b
                            time_grid(case.analysis).steps)
         status.fail(exc, {"wall_time_s": _wall(timer)})
         raise
+    warn_locking(setup)
     # after validation (a bad case never touches earlier results), before the long stages
     manifest, status = _claim(out_dir, name, overwrite, resolved_yaml, case_path,
                               setup.grid.steps)
@@ -334,6 +336,14 @@ def _summary(case: Case, case_path: Path, setup: Setup, world: World, tally: Tal
         log(f"reference  {ref['solution']}: {ref['quantity']} {ref['computed']:.6g}, exact "
             f"{ref['exact']:.6g}, relative error {ref['relative_error']:+.3e}")
     return result
+
+
+def warn_locking(setup: Setup) -> None:
+    """Before the first step: the reasons the case's elements will be too stiff
+    (:mod:`~fem_frac.app.locking`), one ``warning:`` line each on stderr."""
+    d = setup.disc
+    for text in locking_warnings(setup.case, d.mesh, d.materials):
+        print(f"warning: {text}", file=sys.stderr)
 
 
 # A single-pass run whose residual exceeds this is reported as out of equilibrium.

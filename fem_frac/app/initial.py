@@ -79,17 +79,58 @@ def first_state(case: Case, disc, case_dir: Path) -> State:
     return displaced_state(d.problem, d.law, d.ops, d.constrained, u0, v0)
 
 
+def initial_lines(case: Case, space, problem, case_dir: Path) -> list[str]:
+    """What ``check`` says of the initial displacement, after the checks a run makes of it
+    before its first step (the field meets the supports, the earlier run's frame matches
+    the mesh; the preload's supports hold the body)."""
+    spec = displacement_spec(case)
+    if spec is None:
+        return []
+    if spec.preload is not None:
+        pre = spec.preload
+        own = _preload(space, pre, None, problem)
+        _held(space, own)
+        what = "; ".join(own.descriptions)
+        loads = " with the case's loads at t = 0" if pre.case_loads else ""
+        return [f"initial     static preload ({what}){loads} in {pre.steps} load step(s), "
+                "removed at t = 0+"]
+    if spec.field is not None:
+        u0 = field_displacement(space, spec.field, KEY + ("field",))
+        check_supports(u0, problem, KEY + ("field",))
+        text = f"field u = ({spec.field.x}, {spec.field.y}, {spec.field.z})"
+    else:
+        u0, _ = run_state(case_dir, spec.from_run, space)
+        check_supports(u0, problem, KEY + ("from_run",))
+        text = f"last frame of {run_series(case_dir, spec.from_run)}" + (
+            " with its velocity" if spec.from_run.velocity else "")
+    largest = float(np.abs(u0.reshape(-1, 3)).max(initial=0.0))
+    return [f"initial     {text}: largest displacement component {largest:.4g}"]
+
+
+def _preload(space, pre, density, problem):
+    """The static problem of the preload ``pre``; its conditions' errors located inside
+    it."""
+    try:
+        return preload_problem(space, list(pre.boundary_conditions), density, problem,
+                               pre.case_loads)
+    except CaseError as exc:
+        raise CaseError(KEY + ("preload",) + exc.path, exc.message) from None
+
+
+def _held(space, problem) -> None:
+    free = free_rigid_modes(space, problem.constraints.dofs)
+    if free:
+        raise CaseError(KEY + ("preload",), "the supports of the case and of the preload "
+                        f"leave rigid-body motions free ({', '.join(free)}): the static "
+                        "preload is singular; add supports to the preload's "
+                        "boundary_conditions")
+
+
 def _released(case: Case, d, v0) -> State:
     """The equilibrium under the preload, its loads and supports removed at t = 0+."""
     pre = case.analysis.initial_displacement.preload
-    key = KEY + ("preload",)
-    problem = preload_problem(d.space, list(pre.boundary_conditions), d.materials.density,
-                              d.problem, pre.case_loads)
-    free = free_rigid_modes(d.space, problem.constraints.dofs)
-    if free:
-        raise CaseError(key, "the supports of the case and of the preload leave rigid-body "
-                        f"motions free ({', '.join(free)}): the static preload is singular; "
-                        "add supports to the preload's boundary_conditions")
+    problem = _preload(d.space, pre, d.materials.density, d.problem)
+    _held(d.space, problem)
     analysis = case.analysis
     start = preloaded(problem, d.law, d.ops, analysis.linear_solver, analysis.equilibrium,
                       pre.steps)

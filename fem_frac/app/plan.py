@@ -64,7 +64,26 @@ def _finite_elements(case: Case) -> list[Stage]:
                       f"to t = {grid.t_end:.4g}: gravity exact, torque-free rotation by exact "
                       "principal-axis rotations, ground contact by impulses")]
     return [Stage("stiffness", True, "isotropic linear elasticity, assembled once"),
-            _mass(analysis), Stage("solve", True, _solve(analysis))]
+            _mass(analysis), *_initial(analysis), Stage("solve", True, _solve(analysis))]
+
+
+def _initial(analysis) -> list[Stage]:
+    """Dynamic: the state at t = 0 (static analyses start from the loads at t = 0)."""
+    if not isinstance(analysis, DynamicAnalysis):
+        return []
+    spec, v0 = analysis.initial_displacement, analysis.initial_velocity
+    moving = ", moving with initial_velocity" if v0 is not None else ""
+    if spec is None:
+        return [Stage("initial", False, f"undeformed{moving}")]
+    if spec.preload is not None:
+        text = (f"the static equilibrium under a preload of "
+                f"{len(spec.preload.boundary_conditions)} condition(s), removed at t = 0+")
+    elif spec.field is not None:
+        text = "a displacement field of x, y, z"
+    else:
+        text = f"the last frame of the run in {spec.from_run.directory}" + (
+            " with its velocity" if spec.from_run.velocity else "")
+    return [Stage("initial", True, f"displaced: {text}{moving}; acceleration balanced")]
 
 
 def _mass(analysis) -> Stage:

@@ -21,6 +21,8 @@ from ..solve.loading import time_grid
 from ..solve.problem import outer_facets
 from ..timing import StageTimer
 from .driver import check_stages, interface_recipe, recipe_of
+from .initial import check_initial, initial_lines
+from .locking import locking_warnings
 from .plan import format_plan, make_plan
 
 # Tets with a smaller minimum dihedral angle than this are reported as poorly shaped.
@@ -36,6 +38,7 @@ def check_report(case: Case, source: Source) -> str:
     """Validate, mesh and resolve supports and loads; describe the result. No solve."""
     timer = StageTimer()
     check_stages(case)
+    check_initial(case, source.path.parent)
     with timer("mesh"):
         mesh = build_mesh(case.mesh, source.path.parent)
     recipe = recipe_of(case, time_grid(case.analysis).dt)
@@ -76,6 +79,11 @@ def check_report(case: Case, source: Source) -> str:
     lines += [f"  {d}" for d in problem.descriptions] or ["  (none)"]
     lines += _selection_lines(case, mesh, space)
     lines += _load_lines(case, space, materials, problem)
+    lines += initial_lines(case, space, problem, source.path.parent)
+    warnings = locking_warnings(case, mesh, materials)
+    if warnings:
+        lines.append("locking")
+        lines += [f"  warning: {text}" for text in warnings]
     if case.fracture is not None:
         lines += _fracture_lines(case, mesh, materials)
     if isinstance(case.analysis, DynamicAnalysis):
