@@ -96,21 +96,19 @@ def support_kinetic(state: State, ops: Operators, fixed: np.ndarray) -> float:
     return 0.5 * float(v @ (ops.mass.diagonal()[fixed] * v))
 
 
-def account(ledger: Ledger, old: State, new: State, problem, law, ops: Operators,
-            support_inertia: bool = True) -> Ledger:
+def account(ledger: Ledger, old: State, new: State, problem, law, ops: Operators) -> Ledger:
     """The ledger after the step ``old -> new`` (trapezoidal works).
 
-    ``support_inertia``: the reactions include the inertia of the constrained dofs, as the
-    implicit steppers' do (``M a`` on their rows). An explicit step's reactions are the
-    force the body transmits (``f_int - f_ext`` there): the supports' own lumped masses
-    move as prescribed, and the work the driver does on them is the change of their
-    kinetic energy, booked here as such (see docs/dynamics.md, Energy).
+    When ``new.reaction_inertia`` is false (an explicit step) the reactions are the force
+    the body transmits: the supports' own lumped masses move as prescribed, and the work
+    the driver does on them is the change of their kinetic energy, booked as such (see
+    docs/dynamics.md, Energy).
     """
     du = new.u - old.u
     f_old = _full_force(problem, old.t, old.reaction)
     f_new = _full_force(problem, new.t, new.reaction)
     external = ledger.external_work + 0.5 * (f_old + f_new) @ du
-    if not support_inertia:
+    if not new.reaction_inertia:
         fixed = problem.constraints.dofs
         external += support_kinetic(new, ops, fixed) - support_kinetic(old, ops, fixed)
     damping = ledger.damping_work

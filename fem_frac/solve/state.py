@@ -47,7 +47,12 @@ class State:
     """Committed state at time ``t``. Vectors are ``(n_dofs,)``; ``stress`` Mandel
     ``(6, n_tets, n_qp)``; ``reaction`` is the support force on the constrained dofs
     ``(k,)``; ``internal_force`` includes the cohesive faces' forces, whose state is
-    ``cohesive`` (``None`` without cohesive faces)."""
+    ``cohesive`` (``None`` without cohesive faces). ``reaction_inertia``: the reaction
+    includes the inertia of the constrained dofs (``M a`` and ``C v`` on their rows, as
+    every implicit step and every balanced state has it); an explicit step's reaction is
+    the force the body transmits, ``f_int + C v - f_ext`` there, the supports' own lumped
+    masses moving as prescribed (the ledger books the driver's work on them as the change
+    of their kinetic energy, :func:`fem_frac.solve.energy.account`)."""
 
     t: float
     u: np.ndarray
@@ -58,6 +63,7 @@ class State:
     internal_force: np.ndarray
     reaction: np.ndarray
     cohesive: CohesiveState | None = None
+    reaction_inertia: bool = True
 
 
 @dataclass(frozen=True)

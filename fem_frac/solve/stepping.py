@@ -397,8 +397,8 @@ class ExplicitStepper:
         a = force * self.inverse_mass
         a[fixed] = 0.0
         v = v_half + 0.5 * h * a
-        return (State(t, u, v, a, stress, plastic, f_int, -force[fixed], cohesive),
-                StepInfo(1, 0.0))
+        return (State(t, u, v, a, stress, plastic, f_int, -force[fixed], cohesive,
+                      reaction_inertia=False), StepInfo(1, 0.0))
 
 
 Stepper = ImplicitStepper | ExplicitStepper
@@ -439,8 +439,7 @@ def advance(stepper: Stepper, state: State, end: float, ledger: Ledger,
             cutbacks += 1
             continue
         pending.pop()
-        ledger = account(ledger, state, new, stepper.problem, stepper.law, stepper.ops,
-                         support_inertia=not isinstance(stepper, ExplicitStepper))
+        ledger = account(ledger, state, new, stepper.problem, stepper.law, stepper.ops)
         state = new
         total = total.then(info)
     return state, ledger, StepInfo(total.iterations, total.residual, total.solves,
