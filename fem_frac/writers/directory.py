@@ -286,7 +286,7 @@ def _written_names(directory: Path, name: str) -> list[str]:
     """Names the run (or the driver) writes that exist now: fixed ones, the series'
     indices and scratch files, the frames; a link or directory at one of them stops the
     run."""
-    fixed = [*FIXED, MANIFEST, f"{name}_view.py"]
+    fixed = [*FIXED, MANIFEST, f"{name}_view.py", f"{name}_probes.csv"]
     for series in (name, f"{name}_crack"):
         fixed += [f"{series}.pvd", f"{series}.pvd.tmp", f"{series}.vtu.tmp"]
     frames = _names_matching(directory, f"{glob.escape(name)}_*.vtu")
