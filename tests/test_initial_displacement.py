@@ -164,3 +164,103 @@ def test_started_in_the_first_mode_it_stays_there(released, tmp_path):
     amplitude = modes.amplitudes(u, v)
     assert amplitude[:, 1].max() < ROUND_OFF * amplitude[0, 0]
     assert np.abs(amplitude[:, 0] - amplitude[0, 0]).max() < ROUND_OFF * amplitude[0, 0]
+
+
+def test_a_field_of_expressions_is_evaluated_at_every_node(tmp_path):
+    """The Euler-Bernoulli first mode as a field: its values at the nodes (mid-side nodes
+    of P2 included), its modal amplitudes conserved like any initial state's."""
+    beta = 1.8751040687  # beta L of the first mode
+    sigma = (np.cosh(beta) + np.cos(beta)) / (np.sinh(beta) + np.sin(beta))
+    start = {"field": {"constants": {"b": beta, "s": sigma, "a": 5e-4},
+                       "z": "a * (cosh(b * x) - cos(b * x) - s * (sinh(b * x) - sin(b * x)))"}}
+    setup, u, v = history(cantilever(start, steps=40))
+    x = setup.disc.space.node_points[:, 0]
+    expected = 5e-4 * (np.cosh(beta * x) - np.cos(beta * x)
+                       - sigma * (np.sinh(beta * x) - np.sin(beta * x)))
+    np.testing.assert_allclose(u[0].reshape(-1, 3)[:, 2], expected, rtol=1e-12, atol=1e-18)
+    assert not np.any(u[0].reshape(-1, 3)[:, :2])
+    modes = Modes(setup.disc)
+    amplitude = modes.amplitudes(u, v)
+    assert np.abs(amplitude - amplitude[0]).max() < ROUND_OFF * amplitude[0, 0]
+
+
+def test_the_initial_acceleration_balances_a_plastic_preload():
+    """A preload past yield: the body starts with the preload's plastic strain, and
+    M a0 = f_ext(0) - f_int(u0) on the free dofs (no preload force left)."""
+    from fem_frac.app.initial import first_state
+
+    case = cantilever({"preload": {"boundary_conditions": [dict(TIP_FORCE, traction=[
+        0.0, 0.0, -2e7])], "steps": 2}}, order=1, steps=1)
+    case["plasticity"] = {"yield_stress": 250e6, "hardening": 2e9}
+    setup, _, _ = history(case)
+    d = setup.disc
+    state = first_state(setup.case, d, setup.case_dir)
+    assert state.plastic.equivalent_plastic_strain.max() > 0.0
+    free = d.constrained.free
+    unbalanced = (d.ops.mass @ state.a + state.internal_force)[free]
+    assert np.abs(unbalanced).max() < 1e-10 * np.abs(state.internal_force[free]).max()
+
+
+def test_an_earlier_runs_last_frame_is_the_next_runs_start(tmp_path, capsys):
+    """Run, then start a second run from its output directory: the first run's last
+    displacement and velocity, node by node."""
+    import meshio
+
+    first = cantilever({"preload": {"boundary_conditions": [TIP_FORCE]}}, order=1, steps=3)
+    path = write_case(tmp_path / "first.yaml", first)
+    assert main(["run", str(path), "-o", str(tmp_path / "first"), "-q"]) == 0
+    last = meshio.read(sorted((tmp_path / "first").glob("first_*.vtu"))[-1])
+    second = cantilever({"from_run": {"directory": "first", "velocity": True}}, order=1,
+                        steps=1)
+    setup, u, v = history(second, tmp_path)
+    np.testing.assert_array_equal(u[0], last.point_data["displacement"].ravel())
+    np.testing.assert_array_equal(v[0], last.point_data["velocity"].ravel())
+    assert np.any(v[0])
+
+
+SUPPORTED = [{"type": "fixed", "boundary": "xmin"}]
+
+
+@pytest.mark.parametrize(("start", "key", "message"), [
+    ({"field": {"z": "x + __import__('os')"}}, "initial_displacement.field.z",
+     "'__import__' is not a function"),
+    ({"field": {"z": "x.real"}}, "initial_displacement.field.z", "is not allowed"),
+    ({"field": {"z": "L * x"}}, "initial_displacement.field.z", "unknown name 'L'"),
+    ({"field": {"z": "1 / x"}}, "initial_displacement.field.z", "not finite at"),
+    ({"field": {"z": "0.01"}}, "initial_displacement.field",
+     "does not meet the supports: uz = 0.01"),
+    ({"field": {"constants": {"x": 1.0}}}, "initial_displacement.field.constants",
+     "cannot name a constant"),
+    ({"preload": {"boundary_conditions": [dict(TIP_FORCE, curve="ramp")]}},
+     "initial_displacement.preload.boundary_conditions", "no 'curve'"),
+    ({"preload": {"boundary_conditions": [dict(TIP_FORCE, boundary="top")]}},
+     "initial_displacement.preload.boundary_conditions[0].boundary", "top"),
+    ({"preload": {"boundary_conditions": []}},
+     "initial_displacement.preload.boundary_conditions", "got []"),
+    ({"field": {"z": "0"}, "from_run": {"directory": "x"}}, "initial_displacement",
+     "exactly one of"),
+    ({"from_run": {"directory": "nowhere"}}, "initial_displacement.from_run.directory",
+     "is no directory"),
+])
+def test_bad_initial_displacements_are_located_errors(tmp_path, capsys, start, key, message):
+    case = cantilever(start, order=1, steps=1)
+    case["boundary_conditions"] = SUPPORTED
+    path = write_case(tmp_path / "bad.yaml", case)
+    assert main(["check", str(path)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.startswith(f"error: {path}:") and f"analysis.{key}: " in err, err
+    assert message in err and len(err.splitlines()) == 1, err
+
+
+def test_a_preload_on_a_body_held_by_nothing_is_a_located_error(tmp_path, capsys):
+    case = cantilever({"preload": {"boundary_conditions": [TIP_FORCE]}}, order=1, steps=1)
+    case["boundary_conditions"] = []
+    path = write_case(tmp_path / "free.yaml", case)
+    assert main(["check", str(path)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert "analysis.initial_displacement.preload: " in err and "translation x" in err
+    case["analysis"]["initial_displacement"] = {"from_run": {"directory": "."}}
+    case["plasticity"] = {"yield_stress": 250e6}
+    path = write_case(tmp_path / "plastic.yaml", case)
+    assert main(["check", str(path)]) == 2
+    assert "initial_displacement.from_run: " in capsys.readouterr().err
