@@ -342,7 +342,7 @@ def warn_locking(setup: Setup) -> None:
     """Before the first step: the reasons the case's elements will be too stiff
     (:mod:`~fem_frac.app.locking`), one ``warning:`` line each on stderr."""
     d = setup.disc
-    for text in locking_warnings(setup.case, d.mesh, d.materials):
+    for text in locking_warnings(setup.case, d.mesh, d.materials, d.problem):
         print(f"warning: {text}", file=sys.stderr)
 
 

@@ -24,18 +24,41 @@ def bulk_to_shear(nu: float) -> float:
     return 2.0 * (1.0 + nu) / (3.0 * (1.0 - 2.0 * nu))
 
 
-def elements_through(mesh) -> tuple[float, float, str]:
-    """``(elements across the thinnest extent, median element size, axis)``: the bounding
-    box's smallest side over the median of the tets' mean edge lengths (a plate's or a
-    beam's thickness; a thin curved wall is not measured)."""
+def element_size(mesh) -> float:
+    """The median of the tets' mean edge lengths."""
     x = mesh.points[mesh.tets[:, TET_EDGES]]  # (n_tets, 6, 2, 3)
-    size = float(np.median(np.linalg.norm(x[:, :, 1] - x[:, :, 0], axis=2).mean(axis=1)))
-    extent = np.ptp(mesh.points, axis=0)
-    k = int(np.argmin(extent))
-    return float(extent[k]) / size, size, "xyz"[k]
+    return float(np.median(np.linalg.norm(x[:, :, 1] - x[:, :, 0], axis=2).mean(axis=1)))
 
 
-def locking_warnings(case: Case, mesh, materials) -> list[str]:
+def across(mesh) -> np.ndarray:
+    """``(3,)`` elements across the body along x, y, z: the bounding box's sides over the
+    median element size (a plate's or a beam's thickness; a thin curved wall is not
+    measured)."""
+    return np.ptp(mesh.points, axis=0) / element_size(mesh)
+
+
+def loaded_across(case: Case, problem) -> np.ndarray:
+    """``(3,)`` whether anything moves the body along x, y, z: a force (surface loads,
+    gravity), a non-zero prescribed displacement, an initial velocity (a rotation moves it
+    every way) or an initial displacement along that axis. A thin part loaded only in its
+    own plane (a bar pulled along its axis) does not bend."""
+    forces = np.abs(problem.forces).reshape(len(problem.forces), -1, 3).max(axis=(0, 1))
+    out = forces > 0.0
+    values = problem.constraints.values
+    out[np.unique(problem.constraints.dofs[values != 0.0] % 3)] = True
+    analysis = case.analysis
+    v0 = getattr(analysis, "initial_velocity", None)
+    if v0 is not None:
+        out |= np.asarray(v0.uniform) != 0.0
+        out |= np.any(np.asarray(v0.angular_velocity) != 0.0)
+    start = getattr(analysis, "initial_displacement", None)
+    if start is not None:
+        field = start.field
+        out |= [field is None or getattr(field, a).strip() != "0" for a in "xyz"]
+    return out
+
+
+def locking_warnings(case: Case, mesh, materials, problem) -> list[str]:
     """One line per reason the case's elements will be too stiff (none for P2)."""
     if case.mesh.order != 1:
         return []
@@ -54,12 +77,15 @@ def locking_warnings(case: Case, mesh, materials) -> list[str]:
                    f"{bulk_to_shear(nu):.3g} times the shear modulus (Hill's sphere at nu "
                    "0.49: outer displacement 53 % low, 7.9 % averaged, 0.26 % P2; "
                    "docs/plasticity.md); " + remedy)
-    through, size, axis = elements_through(mesh)
-    if through < THIN_ELEMENTS:
-        out.append(f"about {through:.3g} linear tets across the body's thinnest extent "
-                   f"({axis}: {through * size:.4g} over a median element size {size:.4g}; "
-                   f"fewer than {THIN_ELEMENTS:g}): linear tets bend far too stiffly with "
-                   "so few (a cantilever's tip deflection is 45 % low at 1.6 across its "
-                   "depth, 15 % at 3.3, P2 within 1.3 % at 1.2; docs/plasticity.md); use "
-                   "mesh.order: 2 or smaller elements")
+    counts = np.where(loaded_across(case, problem), across(mesh), np.inf)
+    k = int(np.argmin(counts))
+    if counts[k] < THIN_ELEMENTS:
+        extent = float(np.ptp(mesh.points[:, k]))
+        out.append(f"about {counts[k]:.3g} linear tets across the body's extent in "
+                   f"{'xyz'[k]} ({extent:.4g} over a median element size "
+                   f"{extent / counts[k]:.4g}; fewer than {THIN_ELEMENTS:g}), and loads "
+                   "along it: linear tets bend far too stiffly with so few (a cantilever's "
+                   "tip deflection is 45 % low at 1.6 across its depth, 15 % at 3.3, P2 "
+                   "within 1.3 % at 1.2; docs/plasticity.md); use mesh.order: 2 or smaller "
+                   "elements")
     return out

@@ -80,7 +80,7 @@ def check_report(case: Case, source: Source) -> str:
     lines += _selection_lines(case, mesh, space)
     lines += _load_lines(case, space, materials, problem)
     lines += initial_lines(case, space, problem, source.path.parent)
-    warnings = locking_warnings(case, mesh, materials)
+    warnings = locking_warnings(case, mesh, materials, problem)
     if warnings:
         lines.append("locking")
         lines += [f"  warning: {text}" for text in warnings]
