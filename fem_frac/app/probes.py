@@ -27,6 +27,7 @@ from ..writers.probes import (
     empty_stencil,
     point_stencil,
     read,
+    tet_boxes,
 )
 
 VECTOR, TENSOR = ("_x", "_y", "_z"), ("_xx", "_yy", "_zz", "_xy", "_yz", "_xz")
@@ -60,21 +61,39 @@ def missing(case: Case, field: str) -> str | None:
     return None
 
 
+class Places:
+    """What locating probes on the mesh of ``disc`` needs, made once for all of them (on
+    first use): the tets' bounding boxes, the exterior faces less the cracks'."""
+
+    def __init__(self, disc: Discretization):
+        self.space = disc.space
+        self._boxes = self._exterior = None
+
+    def stencil(self, probe) -> Stencil:
+        """Where ``probe`` reads the mesh. Raises LookupError for a boundary name the mesh
+        does not have."""
+        space = self.space
+        if probe.point is not None:
+            if self._boxes is None:
+                self._boxes = tet_boxes(space)
+            return point_stencil(space, probe.point, self._boxes)
+        if self._exterior is None:
+            self._exterior = outer_facets(space.mesh)
+        triples = named_facets(space.mesh, probe.boundary, self._exterior)
+        facets = space.facet_indices(triples) if len(triples) else np.zeros(0, dtype=np.int64)
+        return boundary_stencil(space, facets)
+
+
 def stencil(probe, disc: Discretization) -> Stencil:
-    """Where ``probe`` reads the mesh of ``disc``. Raises LookupError for a boundary name
-    the mesh does not have."""
-    space = disc.space
-    if probe.point is not None:
-        return point_stencil(space, probe.point)
-    triples = named_facets(space.mesh, probe.boundary, outer_facets(space.mesh))
-    facets = space.facet_indices(triples) if len(triples) else np.zeros(0, dtype=np.int64)
-    return boundary_stencil(space, facets)
+    """Where ``probe`` reads the mesh of ``disc`` (:meth:`Places.stencil`)."""
+    return Places(disc).stencil(probe)
 
 
 def check_probes(case: Case, disc: Discretization) -> None:
     """Every probe's name is new, its fields are written by this case, its boundary
     exists and has faces, its point lies in the mesh: else a located :class:`CaseError`."""
     seen: set[str] = set()
+    places = Places(disc)
     for i, probe in enumerate(case.probes):
         mine = columns([probe])[2:]
         if probe.name in seen or seen.intersection(mine):
@@ -86,7 +105,7 @@ def check_probes(case: Case, disc: Discretization) -> None:
             if why is not None:
                 raise CaseError(("probes", i, "fields", j), why)
         try:
-            found = stencil(probe, disc).found
+            found = places.stencil(probe).found
         except LookupError as exc:
             raise CaseError(("probes", i, "boundary"), str(exc)) from None
         if not found and probe.point is not None:
@@ -139,9 +158,10 @@ class ProbeRecorder:
     def _locate(self, disc: Discretization) -> None:
         self._mesh = disc.mesh
         self._stencils = []
+        places = Places(disc)
         for probe in self.probes:
             try:
-                self._stencils.append(stencil(probe, disc))
+                self._stencils.append(places.stencil(probe))
             except LookupError:  # a group no face of this mesh carries any more
                 self._stencils.append(empty_stencil(disc.space))
         self._cells = np.unique(np.concatenate(

@@ -45,20 +45,27 @@ class Stencil:
     found: bool
 
 
-def locate(space: Space, point) -> tuple[int, np.ndarray, float]:
+def tet_boxes(space: Space) -> tuple[np.ndarray, np.ndarray]:
+    """The bounding box ``(lo, hi)``, each ``(n_tets, 3)``, of every tet (scikit-fem's
+    vertex order): computed once per mesh for all its point probes."""
+    corners = space.mesh.points[space.skmesh.t.T[:, :4]]
+    return corners.min(axis=1), corners.max(axis=1)
+
+
+def locate(space: Space, point, boxes=None) -> tuple[int, np.ndarray, float]:
     """The tet that holds ``point`` and the point's barycentric coordinates ``(4,)`` in it
     (scikit-fem's vertex order), and the least of them: below ``-INSIDE`` when no tet holds
-    the point (then the nearest by that measure; ``-inf`` on an empty mesh)."""
+    the point (then the nearest by that measure; ``-inf`` when no tet's box holds it).
+    ``boxes``: :func:`tet_boxes` of the space, when already made."""
     x = np.asarray(point, dtype=float)
-    tets = space.skmesh.t.T[:, :4]
-    corners = space.mesh.points[tets]  # (n_tets, 4, 3)
-    extent = np.ptp(space.mesh.points, axis=0).max() if len(tets) else 0.0
+    lo, hi = boxes if boxes is not None else tet_boxes(space)
+    points = space.mesh.points
+    extent = np.ptp(points, axis=0).max() if len(points) else 0.0
     pad = INSIDE * max(extent, 1.0)
-    near = np.flatnonzero(np.all((corners.min(axis=1) - pad <= x)
-                                 & (x <= corners.max(axis=1) + pad), axis=1))
+    near = np.flatnonzero(np.all((lo - pad <= x) & (x <= hi + pad), axis=1))
     if len(near) == 0:
         return -1, np.zeros(4), -np.inf
-    bary = barycentric(corners[near], x)
+    bary = barycentric(points[space.skmesh.t.T[near, :4]], x)
     least = bary.min(axis=1)
     best = int(np.argmax(least))
     return int(near[best]), bary[best], float(least[best])
@@ -71,9 +78,10 @@ def barycentric(corners: np.ndarray, x: np.ndarray) -> np.ndarray:
     return np.concatenate([1.0 - ref.sum(axis=1, keepdims=True), ref], axis=1)
 
 
-def point_stencil(space: Space, point) -> Stencil:
-    """A point probe's weights (module docstring); ``found`` false outside the mesh."""
-    element, bary, least = locate(space, point)
+def point_stencil(space: Space, point, boxes=None) -> Stencil:
+    """A point probe's weights (module docstring); ``found`` false outside the mesh.
+    ``boxes``: :func:`tet_boxes` of the space, when already made."""
+    element, bary, least = locate(space, point, boxes)
     if least < -INSIDE:
         return empty_stencil(space)
     elem = space.basis.elem
