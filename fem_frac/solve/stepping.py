@@ -364,7 +364,9 @@ class ExplicitStepper:
     """Central difference (velocity Verlet) with a lumped (diagonal) mass; no solve.
 
     Damping uses the half-step velocity. Prescribed dofs follow their curves, with the
-    velocity of the prescribed motion and zero acceleration. ``substeps`` stable steps are
+    velocity of the last step's prescribed motion and zero acceleration; the reaction is
+    the force the body transmits (``State.reaction_inertia`` false: the ledger books the
+    driver's work on the supports' own masses as the change of their kinetic energy). ``substeps`` stable steps are
     taken per step of the time grid (see :func:`advance`).
     """
 
