@@ -366,8 +366,8 @@ class ExplicitStepper:
     Damping uses the half-step velocity. Prescribed dofs follow their curves, with the
     velocity of the last step's prescribed motion and zero acceleration; the reaction is
     the force the body transmits (``State.reaction_inertia`` false: the ledger books the
-    driver's work on the supports' own masses as the change of their kinetic energy). ``substeps`` stable steps are
-    taken per step of the time grid (see :func:`advance`).
+    driver's work on the supports' own masses as the change of their kinetic energy).
+    ``substeps`` stable steps are taken per step of the time grid (see :func:`advance`).
     """
 
     cutbacks = 0
