@@ -46,8 +46,9 @@ def report(name: str, start: dict) -> None:
         state = first_state(setup.case, setup.disc, setup.case_dir)
         first, _ = setup.disc.stepper.step(replace(state, a=np.zeros_like(state.a)), t.DT, 1)
         b = modes.amplitudes(first.u, first.v)
-        print(f"control, a0 = 0: second-mode amplitude moved by {abs(b[1] - a[0, 1]) / a[0, 0]:.1e} "
-              "of the first mode's in the first step")
+        moved = abs(b[1] - a[0, 1]) / a[0, 0]
+        print(f"control, a0 = 0: second-mode amplitude moved by {moved:.1e} of the first "
+              "mode's in the first step")
 
 
 if __name__ == "__main__":
