@@ -84,11 +84,6 @@ class Places:
         return boundary_stencil(space, facets)
 
 
-def stencil(probe, disc: Discretization) -> Stencil:
-    """Where ``probe`` reads the mesh of ``disc`` (:meth:`Places.stencil`)."""
-    return Places(disc).stencil(probe)
-
-
 def check_probes(case: Case, disc: Discretization) -> None:
     """Every probe's name is new, its fields are written by this case, its boundary
     exists and has faces, its point lies in the mesh: else a located :class:`CaseError`."""
