@@ -217,5 +217,5 @@ def test_a_load_beyond_the_limit_load_stops_with_a_diagnostic():
         run(sphere_in_one_step(1.6 * SIGMA_Y, cutbacks=3, max_iterations=60,
                                method="modified_newton"))
     message = str(err.value)
-    assert "step 1" in message and "after 3 cutbacks" in message
+    assert "step 1" in message and "after 3 levels of cut-back" in message
     assert "exceed" in message

@@ -10,22 +10,20 @@ cutbacks) and keeps the energy ledger (:mod:`fem_frac.solve.energy`).
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+import math
+from dataclasses import dataclass, field
 
 import numpy as np
 import scipy.sparse as sp
 
 from ..config.schema import Equilibrium
 from ..errors import SolverError
+from . import convergence
+from .convergence import ANDERSON_DEPTH, Anderson, contraction, iterations_left
 from .energy import Ledger, account
 from .integrators import Implicit
 from .linalg import Refactorizer
 from .state import Operators, State, StepInfo, check_finite, cohesive_force, reaction
-
-
-class NotConverged(SolverError):
-    """Equilibrium iteration of one step stopped at its iteration cap."""
-
 
 # A correction below this fraction of the displacement is round-off (a few hundred ulps).
 ROUND_OFF = 1e-13
@@ -33,39 +31,12 @@ ROUND_OFF = 1e-13
 LINE_SEARCH_HALVINGS = 4
 # Iterations on one secant factorization before the secant of the latest iterate replaces it.
 SECANT_REFRESH = 25
-# Past corrections Anderson mixing keeps (Walker & Ni 2011 use 1 to 10; 5 is a common choice).
-ANDERSON_DEPTH = 5
+class NotConverged(SolverError):
+    """Equilibrium iteration of one step stopped at its iteration cap (or was predicted
+    to). ``converged`` is ``(state, ledger)`` of the last sub-step a cut-back step
+    converged before it stopped (``None`` when it converged none)."""
 
-
-class Anderson:
-    """Anderson acceleration of the fixed-point iteration u <- u + J0^-1 R(u) of modified
-    Newton (Walker & Ni, SIAM J. Numer. Anal. 49, 2011): the next iterate combines the last
-    ``depth`` iterates so as to minimize the linearized correction. The corrections are
-    J0-preconditioned residuals already computed by the back-solve, so it costs a few dot
-    products per iteration; a converged iteration is unchanged (the correction vanishes).
-    """
-
-    def __init__(self, depth: int):
-        self.depth = depth
-        self.u: list[np.ndarray] = []
-        self.f: list[np.ndarray] = []
-
-    def __call__(self, u: np.ndarray, f: np.ndarray) -> np.ndarray:
-        """The step to take from ``u`` given the plain correction ``f``."""
-        self.u.append(u.copy())
-        self.f.append(f)
-        if len(self.u) > self.depth + 1:
-            self.u.pop(0)
-            self.f.pop(0)
-        if len(self.u) < 2:
-            return f
-        df = np.stack([b - a for a, b in zip(self.f[:-1], self.f[1:], strict=True)], axis=1)
-        du = np.stack([b - a for a, b in zip(self.u[:-1], self.u[1:], strict=True)], axis=1)
-        gamma, *_ = np.linalg.lstsq(df, f, rcond=1e-10)
-        if not np.all(np.isfinite(gamma)):
-            self.u, self.f = self.u[-1:], self.f[-1:]
-            return f
-        return f - (du + df) @ gamma
+    converged: tuple | None = None
 
 
 def _norm(x) -> float:
@@ -96,6 +67,9 @@ class _Iterate:
     secant: bool = False  # full Newton fell back on the faces' secant stiffness
     frozen: bool = False  # and iterates on with that factorization (Anderson-accelerated)
     frozen_at: int = -1  # the iteration that factorization was made at
+    newton: bool = False  # iterating with the consistent tangent (full Newton)
+    switched_at: int = -1  # the iteration modified Newton switched to full Newton at
+    residuals: list = field(default_factory=list)  # relative residuals since the switch
 
 
 @dataclass(frozen=True, eq=False)
@@ -142,6 +116,9 @@ class ImplicitStepper:
         self.factor = None  # elastic Jacobian's factorization, made on first use
         self.tangents = None  # full Newton's refactorizer, made on first use
         self.secant = None  # the cohesive secant stiffness ``self.factor`` holds
+        # the step whose (sub-)steps iterate with full Newton since modified Newton
+        # switched to it (the limit-load rule)
+        self.newton_step = None
 
     def jacobian(self, stiffness: sp.csr_matrix) -> sp.csr_matrix:
         s, ops = self.scheme, self.ops
@@ -180,13 +157,20 @@ class ImplicitStepper:
         target = self._target(old, t, step)
         it = self._first_iterate(old, t)
         method = self.equilibrium.method
+        if method == "newton" or self.newton_step == step:
+            it.newton, it.switched_at = True, (0 if method != "newton" else -1)
         accelerate = None
-        if method == "modified_newton" and self.equilibrium.acceleration == "anderson":
+        if (method == "modified_newton" and self.equilibrium.acceleration == "anderson"
+                and not it.newton):
             accelerate = Anderson(ANDERSON_DEPTH)
         while True:
             residual, scale = self._residual(it, old, target)
-            if it.iterations > 0 and self._converged(it, residual, scale, t, step):
-                break
+            if it.iterations > 0:
+                if self._converged(it, residual, scale, t, step):
+                    break
+                if self._near_limit(it, old, t, step):
+                    accelerate = None  # full Newton's corrections are not mixed
+                self._tangent(it, t, step)
             it.correction = it.factor.solve(residual[self.constrained.free])
             it.solves += 1
             free = self.constrained.free
@@ -194,7 +178,7 @@ class ImplicitStepper:
                 accelerate = Anderson(ANDERSON_DEPTH)  # on the secant just factorized
             if accelerate is not None:
                 it.correction = accelerate(it.u[free], it.correction)
-            if self.ops.interface is not None and method == "newton" and not it.secant:
+            if self.ops.interface is not None and it.newton and not it.secant:
                 self._search(it, old, target)
             else:
                 it.u[free] += it.correction
@@ -206,8 +190,8 @@ class ImplicitStepper:
         """The material's response at the iterate's displacement: stresses, plastic state,
         internal force (cohesive faces included) and, for full Newton, the tangents."""
         strain = self.ops.strain_operator.strain(it.u)
-        it.stress, it.plastic, it.tangent = self.law.update(
-            strain, old.plastic, tangent=(self.equilibrium.method == "newton"))
+        it.stress, it.plastic, it.tangent = self.law.update(strain, old.plastic,
+                                                            tangent=it.newton)
         it.f_int = self.ops.strain_operator.internal_force(it.stress)
         if self.ops.interface is not None:
             f_coh, response, it.cohesive = cohesive_force(self.ops, it.u, old.cohesive)
@@ -280,8 +264,8 @@ class ImplicitStepper:
 
     def _converged(self, it: _Iterate, residual: np.ndarray, scale: float, t: float,
                    step: int) -> bool:
-        """Whether the iteration stops here (``it.relative`` set); raises when it cannot
-        go on; refactorizes full Newton's tangent when it goes on."""
+        """Whether the iteration stops here (``it.relative`` set, and recorded when it goes
+        on); raises when it cannot go on."""
         free, fixed = self.constrained.free, self.constrained.dofs
         method = self.equilibrium.method
         it.relative = _norm(residual[free]) / scale
@@ -299,18 +283,52 @@ class ImplicitStepper:
             it.relative = _norm(residual[free]) / max(scale, prescribed)
             return True
         if it.iterations >= self.equilibrium.max_iterations:
-            raise NotConverged(
-                f"step {step} (t = {t:.6g}): equilibrium not reached in {it.iterations} "
-                f"iterations of {method} (relative residual {it.relative:.2e} > "
-                f"tolerance {self.equilibrium.tolerance:g}); take smaller steps"
-                + (", or use analysis.equilibrium.method: newton"
-                   if method != "newton" else ""))
+            raise NotConverged(self._not_reached(it, t, step, f"in {it.iterations} "
+                                                 "iterations"))
+        it.residuals.append(it.relative)
+        return False
+
+    def _not_reached(self, it: _Iterate, t: float, step: int, how: str) -> str:
+        """The message of a step whose equilibrium iteration stops ``how``."""
+        method = self.equilibrium.method
+        switched = (f", full Newton from iteration {it.switched_at}"
+                    if method == "modified_newton" and it.switched_at >= 0 else "")
+        advice = ", or use analysis.equilibrium.method: newton" if not it.newton else ""
+        return (f"step {step} (t = {t:.6g}): equilibrium not reached {how} of {method}"
+                f"{switched} (relative residual {it.relative:.2e} > tolerance "
+                f"{self.equilibrium.tolerance:g}); take smaller steps{advice}")
+
+    def _near_limit(self, it: _Iterate, old: State, t: float, step: int) -> bool:
+        """Modified Newton's rule near a limit load (docs/solvers.md): where the residual's
+        contraction over the last iterations predicts more iterations than the cap allows,
+        the step (and the sub-steps left of it) goes on with full Newton; where full Newton
+        too is predicted past the cap, the step gives up at once (for a cut-back). True
+        when it switched."""
+        eq = self.equilibrium
+        if eq.method != "modified_newton":
+            return False
+        more = iterations_left(it.residuals, eq.tolerance, convergence.RATE_WINDOW)
+        if more is None or it.iterations + more <= eq.max_iterations:
+            return False
+        if it.newton:
+            rate = contraction(it.residuals, convergence.RATE_WINDOW)
+            raise NotConverged(self._not_reached(
+                it, t, step, f"after {it.iterations} iterations (the residual contracted "
+                f"by {rate:.3g} an iteration over the last {convergence.RATE_WINDOW}: "
+                + (f"{more:.0f} more" if math.isfinite(more) else "no number of")
+                + f" iterations would reach the tolerance, {eq.max_iterations} are allowed)"))
+        it.newton, it.switched_at, it.residuals = True, it.iterations, []
+        self.newton_step = step
+        self._update(it, old)  # the consistent tangent at the iterate
+        return True
+
+    def _tangent(self, it: _Iterate, t: float, step: int) -> None:
+        """Full Newton's matrix for the next correction (modified Newton keeps its own)."""
         if it.frozen and it.iterations - it.frozen_at >= SECANT_REFRESH:
             it.frozen = False  # the secant of an iterate closer to equilibrium
-        if method == "newton" and (self.law.plastic or self.ops.interface is not None) \
+        if it.newton and (self.law.plastic or self.ops.interface is not None) \
                 and not it.frozen:
             self._refactorize(it, t, step)
-        return False
 
     def _refactorize(self, it: _Iterate, t: float, step: int) -> None:
         """Full Newton: factorize the consistent tangent of the iterate (bulk and cohesive
@@ -333,9 +351,11 @@ class ImplicitStepper:
                 it.secant = True
                 self._refactorize(it, t, step)
                 return
+            how = ("newton" if it.switched_at < 0 else
+                   f"modified_newton, full Newton from iteration {it.switched_at}")
             raise NotConverged(
                 f"step {step} (t = {t:.6g}): the consistent tangent became singular after "
-                f"{it.iterations} iterations of newton (relative residual "
+                f"{it.iterations} iterations of {how} (relative residual "
                 f"{it.relative:.2e}): the plastic zone forms a mechanism") from None
         it.factorizations += 1
 
@@ -406,37 +426,39 @@ class ExplicitStepper:
 Stepper = ImplicitStepper | ExplicitStepper
 
 
-def advance(stepper: Stepper, state: State, end: float, ledger: Ledger,
-            n: int) -> tuple[State, Ledger, StepInfo]:
+def advance(stepper: Stepper, state: State, end: float, ledger: Ledger, n: int,
+            substep=None) -> tuple[State, Ledger, StepInfo]:
     """Step ``state`` to ``end``: the interval ``n`` of the time grid.
 
     A stepper with ``substeps > 1`` takes that many equal steps, each one accounted in the
     energy ledger. A stepper with ``cutbacks > 0`` halves a step whose equilibrium iteration
-    fails, up to that many times.
+    fails, down to ``cutbacks`` levels (a sub-step of 2^-cutbacks of the interval); the
+    :class:`StepInfo` counts the halvings. ``substep(state, ledger, info)`` sees every
+    sub-step a cut-back interval converged before its end; a :class:`NotConverged` raised
+    from a cut-back interval carries the last one (``converged``).
     """
     start = state.t
-    substeps, max_cutbacks = stepper.substeps, stepper.cutbacks
+    substeps, levels = stepper.substeps, stepper.cutbacks
     # targets still to reach, the next one last; a step that does not converge is
-    # split in two by pushing its midpoint (cutback), down to 2^-max_cutbacks of it
+    # split in two by pushing its midpoint (cutback), down to 2^-levels of it
     pending = [end if k == substeps else start + (end - start) * k / substeps
                for k in range(substeps, 0, -1)]
-    shortest = (end - start) / substeps / 2**max_cutbacks
+    shortest = (end - start) / substeps / 2**levels
     total = StepInfo(0, 0.0)
-    cutbacks = 0
+    cutbacks = tried = 0
     while pending:
         t = pending[-1]
+        tried += 1
         try:
             # overflow becomes inf/NaN, which the steppers' finiteness checks stop at once
             with np.errstate(over="ignore", invalid="ignore"):
                 new, info = stepper.step(state, t, n)
         except NotConverged as exc:
-            if max_cutbacks == 0:
+            if levels == 0:
                 raise
             if (t - state.t) / 2 < shortest * (1 - 1e-9):
-                raise NotConverged(
-                    f"{exc} (after {cutbacks} cutbacks, down to a step of "
-                    f"{t - state.t:.3g}; the load may exceed what the structure carries)"
-                ) from None
+                raise _cut_back_out(exc, levels, cutbacks, tried, shortest, state, ledger,
+                                    start) from None
             pending.append(0.5 * (state.t + t))
             cutbacks += 1
             continue
@@ -444,6 +466,22 @@ def advance(stepper: Stepper, state: State, end: float, ledger: Ledger,
         ledger = account(ledger, state, new, stepper.problem, stepper.law, stepper.ops)
         state = new
         total = total.then(info)
+        if substep is not None and cutbacks and pending:
+            substep(state, ledger, info)
     return state, ledger, StepInfo(total.iterations, total.residual, total.solves,
                                    total.factorizations, cutbacks)
 
+
+def _cut_back_out(exc: NotConverged, levels: int, cutbacks: int, tried: int,
+                  shortest: float, state: State, ledger: Ledger,
+                  start: float) -> NotConverged:
+    """The failure of an interval cut back as far as it may: how far, what was tried, the
+    last converged sub-step (carried for the output)."""
+    done = f"; the last converged at t = {state.t:.6g}" if state.t > start else \
+        "; none converged"
+    out = NotConverged(
+        f"{exc} (after {levels} levels of cut-back: {cutbacks} halvings, {tried} sub-steps "
+        f"tried down to dt = {shortest:.3g}{done}; the load may exceed what the structure "
+        "carries)")
+    out.converged = (state, ledger) if state.t > start else None
+    return out
