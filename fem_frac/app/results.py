@@ -241,11 +241,13 @@ def applied_columns(disc: Discretization, t: float) -> dict:
 
 
 def history_row(n: int, world: World, info: StepInfo, fracture: FractureEvent | None,
-                last: Body, wall: float, layout: Layout) -> dict:
+                last: Body, wall: float, layout: Layout, substep: int = 0) -> dict:
     """One row of history.csv. ``last``: the body, or the last one once no finite element
-    is left (its supports name the reaction columns, its cracks and pieces stay)."""
+    is left (its supports name the reaction columns, its cracks and pieces stay).
+    ``substep`` k >= 1: the k-th sub-step a cut-back step ``n`` converged before its end
+    (:mod:`~fem_frac.app.substeps`); 0: the step itself."""
     ledger, body, disc = world.ledger, world.body, last.disc
-    row = {"step": n, "time": world.t, "kinetic_energy": ledger.kinetic,
+    row = {"step": n, "substep": substep, "time": world.t, "kinetic_energy": ledger.kinetic,
            "strain_energy": ledger.elastic, "plastic_dissipation": ledger.plastic_dissipation,
            "plastic_work": ledger.plastic_work, "damping_work": ledger.damping_work,
            "external_work": ledger.external_work, "fracture_energy": ledger.fracture,
