@@ -31,7 +31,12 @@ from ..writers.history import HistoryWriter
 from ..writers.paraview import view_scale, write_paraview_script
 from ..writers.series import SeriesWriter
 from .budget import BOUNDS, Bounds, check_budget
-from .initial import check_initial, first_state, initial_velocity  # noqa: F401 (re-export)
+from .initial import (  # noqa: F401 (initial_velocity: re-exported)
+    check_initial,
+    first_state,
+    initial_lines,
+    initial_velocity,
+)
 from .locking import locking_warnings
 from .output import OutputPlan, OutputStage, Progress, Tally, TallyStage
 from .probes import check_probes, probe_recorder
@@ -116,6 +121,8 @@ def prepare(case: Case, case_dir: Path, timer: StageTimer, log: Log = quiet,
     disc = discretize(recipe_of(case, grid.dt), mesh, timer, log=log)
     check_probes(case, disc)
     log(f"space      P{disc.space.order}, {disc.space.n_dofs:,} dofs")
+    for text in initial_lines(case, disc.space, disc.problem, case_dir):
+        log(text)  # the initial displacement, checked here with the rest of the input
     return Setup(case, grid, disc, case_dir)
 
 
@@ -222,10 +229,10 @@ def run_case(case: Case, case_path: Path, out_dir: Path, name: str, overwrite: b
                            time_grid(case.analysis).steps)
         status.fail(exc, {"wall_time_s": _wall(timer)})
         raise
-    warn_locking(setup)
     # after validation (a bad case never touches earlier results), before the long stages
     manifest, status = _claim(out_dir, name, overwrite, resolved_yaml, case_path,
                               setup.grid.steps)
+    warn_locking(setup)
     with terminated_as_interrupt():
         try:
             result = _run(setup, case_path, name, manifest, status, timer, log)

@@ -42,8 +42,7 @@ def loaded_across(case: Case, problem) -> np.ndarray:
     gravity), a non-zero prescribed displacement, an initial velocity (a rotation moves it
     every way) or an initial displacement along that axis. A thin part loaded only in its
     own plane (a bar pulled along its axis) does not bend."""
-    forces = np.abs(problem.forces).reshape(len(problem.forces), -1, 3).max(axis=(0, 1))
-    out = forces > 0.0
+    out = np.any(problem.forces.reshape(-1, 3) != 0.0, axis=0)
     values = problem.constraints.values
     out[np.unique(problem.constraints.dofs[values != 0.0] % 3)] = True
     analysis = case.analysis
@@ -59,8 +58,10 @@ def loaded_across(case: Case, problem) -> np.ndarray:
 
 
 def locking_warnings(case: Case, mesh, materials, problem) -> list[str]:
-    """One line per reason the case's elements will be too stiff (none for P2)."""
-    if case.mesh.order != 1:
+    """One line per reason the case's elements will be too stiff (none for P2, none for a
+    body rigid from the start)."""
+    rigid = case.fragments is not None and case.fragments.whole_body
+    if case.mesh.order != 1 or rigid:
         return []
     out = []
     standard = case.mesh.formulation == "standard"
