@@ -20,7 +20,7 @@ from ..solve.discretization import Discretization, Log, Recipe, discretize, quie
 from ..solve.energy import initial_ledger
 from ..solve.loading import TimeGrid, time_grid
 from ..solve.state import initial_state
-from ..solve.stepping import ImplicitStepper
+from ..solve.stepping import ImplicitStepper, NotConverged
 from ..timing import StageTimer
 from ..world.equilibrium import EquilibriumStage
 from ..world.stage import Stage, march
@@ -33,8 +33,8 @@ from ..writers.series import SeriesWriter
 from .budget import BOUNDS, Bounds, check_budget
 from .initial import (  # noqa: F401 (initial_velocity: re-exported)
     check_initial,
+    describe_initial,
     first_state,
-    initial_lines,
     initial_velocity,
 )
 from .locking import locking_warnings
@@ -43,6 +43,7 @@ from .probes import check_probes, probe_recorder
 from .reference import check_reference, recorder, reference_error
 from .results import CrackWriter, Layout, summary
 from .status import NUMERICAL, RunStatus, terminated_as_interrupt, write_json
+from .substeps import SubstepRows
 
 
 @dataclass(frozen=True, eq=False)
@@ -121,8 +122,10 @@ def prepare(case: Case, case_dir: Path, timer: StageTimer, log: Log = quiet,
     disc = discretize(recipe_of(case, grid.dt), mesh, timer, log=log)
     check_probes(case, disc)
     log(f"space      P{disc.space.order}, {disc.space.n_dofs:,} dofs")
-    for text in initial_lines(case, disc.space, disc.problem, case_dir):
-        log(text)  # the initial displacement, checked here with the rest of the input
+    # the initial displacement, checked here with the rest of the input
+    initial = describe_initial(case, disc.space, disc.problem, case_dir)
+    if initial is not None:
+        log(f"initial    {initial}")
     return Setup(case, grid, disc, case_dir)
 
 
@@ -326,9 +329,14 @@ def _march(setup: Setup, manifest: Manifest, series: SeriesWriter, status: RunSt
     with HistoryWriter(manifest.add("history.csv")) as history:
         output = OutputStage(output_plan(case, setup.grid), layout_of(case), series, history,
                              tally, timer, cracks, Progress(log, setup.grid.steps), observers)
+        substeps = SubstepRows(history, layout_of(case), timer, series)
         with timer("steps"):
-            world = march(world, [*stages(setup, timer, log), output], times(setup.grid),
-                          timer)
+            try:
+                world = march(world, [*stages(setup, timer, log), substeps, output],
+                              times(setup.grid), timer)
+            except NotConverged as exc:  # what converged of the step is kept
+                substeps.failed(exc, status.step + 1)
+                raise
     return world, tally, record
 
 

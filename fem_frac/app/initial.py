@@ -79,21 +79,21 @@ def first_state(case: Case, disc, case_dir: Path) -> State:
     return displaced_state(d.problem, d.law, d.ops, d.constrained, u0, v0)
 
 
-def initial_lines(case: Case, space, problem, case_dir: Path) -> list[str]:
-    """What ``check`` says of the initial displacement, after the checks a run makes of it
-    before its first step (the field meets the supports, the earlier run's frame matches
-    the mesh; the preload's supports hold the body)."""
+def describe_initial(case: Case, space, problem, case_dir: Path) -> str | None:
+    """The initial displacement in words (``None``: undeformed), after the checks a run
+    makes of it before its first step (the field meets the supports, the earlier run's
+    frame matches the mesh; the preload's supports hold the body)."""
     spec = displacement_spec(case)
     if spec is None:
-        return []
+        return None
     if spec.preload is not None:
         pre = spec.preload
         own = _preload(space, pre, None, problem)
         _held(space, own)
-        what = "; ".join(own.descriptions)
+        what = "; ".join(d.replace(", curve ramp", "") for d in own.descriptions)
         loads = " with the case's loads at t = 0" if pre.case_loads else ""
-        return [f"initial     static preload ({what}){loads} in {pre.steps} load step(s), "
-                "removed at t = 0+"]
+        return (f"static preload ({what}){loads} in {pre.steps} load step(s), removed at "
+                "t = 0+")
     if spec.field is not None:
         u0 = field_displacement(space, spec.field, KEY + ("field",))
         check_supports(u0, problem, KEY + ("field",))
@@ -104,7 +104,7 @@ def initial_lines(case: Case, space, problem, case_dir: Path) -> list[str]:
         text = f"last frame of {run_series(case_dir, spec.from_run)}" + (
             " with its velocity" if spec.from_run.velocity else "")
     largest = float(np.abs(u0.reshape(-1, 3)).max(initial=0.0))
-    return [f"initial     {text}: largest displacement component {largest:.4g}"]
+    return f"{text}: largest displacement component {largest:.4g}"
 
 
 def _preload(space, pre, density, problem):

@@ -21,7 +21,7 @@ from ..solve.loading import time_grid
 from ..solve.problem import outer_facets
 from ..timing import StageTimer
 from .driver import check_stages, interface_recipe, recipe_of
-from .initial import check_initial, initial_lines
+from .initial import check_initial, describe_initial
 from .locking import locking_warnings
 from .plan import format_plan, make_plan
 
@@ -79,7 +79,9 @@ def check_report(case: Case, source: Source) -> str:
     lines += [f"  {d}" for d in problem.descriptions] or ["  (none)"]
     lines += _selection_lines(case, mesh, space)
     lines += _load_lines(case, space, materials, problem)
-    lines += initial_lines(case, space, problem, source.path.parent)
+    initial = describe_initial(case, space, problem, source.path.parent)
+    if initial is not None:
+        lines.append(f"initial     {initial}")
     warnings = locking_warnings(case, mesh, materials, problem)
     if warnings:
         lines.append("locking")
