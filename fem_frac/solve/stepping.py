@@ -34,9 +34,11 @@ SECANT_REFRESH = 25
 class NotConverged(SolverError):
     """Equilibrium iteration of one step stopped at its iteration cap (or was predicted
     to). ``converged`` is ``(state, ledger)`` of the last sub-step a cut-back step
-    converged before it stopped (``None`` when it converged none)."""
+    converged before it stopped (``None`` when it converged none); ``substeps``, what the
+    caller that kept them adds (the equilibrium stage: every converged sub-step's world)."""
 
     converged: tuple | None = None
+    substeps: tuple = ()
 
 
 def _norm(x) -> float:
