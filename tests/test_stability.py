@@ -467,14 +467,21 @@ def test_tiny_yield_stress_yields_everywhere_and_balances_energy(tmp_path):
     assert np.allclose(von_mises, 1.0, rtol=1e-6, atol=0)
 
 
-def test_tiny_yield_stress_modified_newton_stops_cleanly_fast(tmp_path):
+def test_tiny_yield_stress_modified_newton_ends_cleanly_fast(tmp_path):
     """The default modified Newton iterates with the elastic matrix: where a point flows, a
     correction K_e^-1 R moves the strain by about R / E ~ sigma_Y / E, while the flow needs a
     strain change of the size of the step's, 2.5e-4: about E d_eps / sigma_Y ~ 5e7 iterations.
-    It cannot converge; it must stop at step 1 with the diagnostic, finite. (Fast form: 50
-    iterations.)"""
+    Alone it cannot converge; its contraction over 20 iterations predicts more than the cap,
+    so it goes on with full Newton (docs/solvers.md, "Near a limit load"), which meets the
+    round-off floor of the residual (the slow test below). The run must end cleanly either
+    way: converged and finite within the cap, or stopped at step 1 with the diagnostic.
+    (Fast form: 50 iterations.)"""
     r = run_cli(TINY, [MODIFIED, "analysis.equilibrium.max_iterations=50"], tmp_path / "o")
-    _stopped_cleanly(r, 1)
+    if r.code == 0:
+        finite_run(r)
+        assert max(r.history["iterations"]) <= 50
+    else:
+        _stopped_cleanly(r, 1)
 
 
 @pytest.mark.slow
