@@ -154,7 +154,7 @@ A, B, SIGMA_Y = 1.0, 2.0, 240.0
 P_LIMIT = 2.0 * SIGMA_Y * math.log(B / A)  # Hill: the whole wall flows
 
 
-def _sphere(fraction: float) -> dict:
+def sphere(fraction: float) -> dict:
     """The octant of Hill's thick sphere (P2, coarse), its inner pressure ramped to
     ``fraction`` of the exact limit load over 5 steps, default equilibrium settings."""
     return {
@@ -193,7 +193,7 @@ NEAR = 1.006
 def test_near_the_limit_load_modified_newton_switches_to_full_newton(counted):
     steps = []
     setup, world, tally = simulate_dict(
-        _sphere(NEAR), observe=lambda n, s, ledger, seen: steps.append(seen))
+        sphere(NEAR), observe=lambda n, s, ledger, seen: steps.append(seen))
     last = steps[-1]
     assert last.cutbacks == 0 and last.factorizations >= 1  # full Newton's tangents
     assert last.iterations <= 2 * convergence.RATE_WINDOW + 20, last
@@ -204,7 +204,7 @@ def test_near_the_limit_load_modified_newton_switches_to_full_newton(counted):
 def test_without_the_rule_modified_newton_spends_its_cap_and_fails(counted, monkeypatch):
     monkeypatch.setattr(convergence, "RATE_WINDOW", 10**9)
     with pytest.raises(NotConverged) as err:
-        simulate_dict(_sphere(NEAR))
+        simulate_dict(sphere(NEAR))
     assert "500 iterations of modified_newton" in str(err.value)
     assert "after 4 levels of cut-back" in str(err.value)
     assert len(counted) > 5 * 500
@@ -214,7 +214,7 @@ def test_beyond_the_limit_load_the_rule_gives_up_early(counted):
     """No equilibrium at 1.02 p_L: every attempt stops within a few tens of iterations
     (full Newton finds the mechanism) instead of 500."""
     with pytest.raises(NotConverged) as err:
-        simulate_dict(_sphere(1.02))
+        simulate_dict(sphere(1.02))
     message = str(err.value)
     assert "full Newton from iteration" in message and "after 4 levels of cut-back" in message
     attempts = int(message.split(" sub-steps tried")[0].rsplit(" ", 1)[1])
