@@ -14,13 +14,13 @@ import numpy as np
 from ..cohesive.interface import InterfaceRecipe
 from ..cohesive.law import TractionSeparation
 from ..config.schema import Case, DynamicAnalysis, StaticAnalysis
-from ..errors import CaseError, Interrupted
+from ..errors import CaseError, Interrupted, SolverError
 from ..mesh.build import build_mesh
 from ..solve.discretization import Discretization, Log, Recipe, discretize, quiet
 from ..solve.energy import initial_ledger
 from ..solve.loading import TimeGrid, time_grid
 from ..solve.state import initial_state
-from ..solve.stepping import ImplicitStepper, NotConverged
+from ..solve.stepping import ImplicitStepper
 from ..timing import StageTimer
 from ..world.equilibrium import EquilibriumStage
 from ..world.stage import Stage, march
@@ -334,7 +334,7 @@ def _march(setup: Setup, manifest: Manifest, series: SeriesWriter, status: RunSt
             try:
                 world = march(world, [*stages(setup, timer, log), substeps, output],
                               times(setup.grid), timer)
-            except NotConverged as exc:  # what converged of the step is kept
+            except SolverError as exc:  # what converged of the step is kept
                 substeps.failed(exc, status.step + 1)
                 raise
     return world, tally, record

@@ -4,8 +4,9 @@ from __future__ import annotations
 
 from dataclasses import dataclass, replace
 
+from ..errors import SolverError
 from ..solve.state import StepInfo
-from ..solve.stepping import NotConverged, advance
+from ..solve.stepping import advance
 from .stage import Step
 from .state import World
 
@@ -32,8 +33,8 @@ class EquilibriumStage:
     """Steps the deformable body over the interval (substeps and cutbacks as its stepper
     says), keeping the energy ledger; the event is :class:`Equilibrated`. Without a
     deformable body (every piece rigid) only the time moves. A step that fails after
-    converging sub-steps raises :class:`NotConverged` with those sub-steps (``substeps``),
-    so the last converged state is not lost."""
+    converging sub-steps raises its :class:`~fem_frac.errors.SolverError` with those
+    sub-steps (``substeps``), so the last converged state is not lost."""
 
     name = "equilibrium"
 
@@ -52,7 +53,7 @@ class EquilibriumStage:
         try:
             state, ledger, info = advance(body.disc.stepper, body.state, step.t,
                                           world.ledger, step.n, keep)
-        except NotConverged as exc:
+        except SolverError as exc:  # no convergence, a non-finite state: what converged stays
             exc.substeps = tuple(kept)
             raise
         event = Equilibrated(info.iterations, info.residual, info.solves,
