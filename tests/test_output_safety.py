@@ -303,7 +303,7 @@ def test_a_study_keeps_every_run_inside_its_directory(tmp_path, capsys):
         return {k: v for k, v in _tree(tmp_path).items() if k.split(os.sep)[0] != "out"}
 
     before = elsewhere()
-    assert main(["study", str(study), "-o", str(out), "-q"]) == 0
+    assert main(["study", str(study), "-o", str(out), "-q"]) == 1  # both runs refused
     capsys.readouterr()
     assert elsewhere() == before
     rows = (out / "study.csv").read_text().splitlines()[1:]
