@@ -21,7 +21,7 @@ from .constrained import Constrained
 from .energy import initial_ledger
 from .integrators import quasi_static
 from .problem import Constraints, Problem, build_problem
-from .state import Operators, State, balanced_acceleration, cohesive_force, reaction
+from .state import Operators, State, cohesive_force, starting_state
 from .stepping import ImplicitStepper, advance
 
 AXES = "xyz"
@@ -128,14 +128,4 @@ def displaced_state(problem: Problem, law, ops: Operators, constrained, u0: np.n
                                         law.initial_state(ops.weights.shape))
         f_coh, _, cohesive = cohesive_force(ops, u, None)
         f_int = ops.strain_operator.internal_force(stress) + f_coh
-    n = problem.space.n_dofs
-    v = np.zeros(n) if v0 is None else np.array(v0, dtype=float)
-    v[constrained.dofs] = 0.0  # supports start at rest
-    a = np.zeros(n)
-    f_ext = problem.external_force(0.0)
-    if ops.mass is None:
-        return State(0.0, u, v, a, stress, plastic, f_int,
-                     reaction(ops, constrained.dofs, f_int, f_ext), cohesive)
-    a = balanced_acceleration(ops, constrained, f_int, f_ext, v, a)
-    return State(0.0, u, v, a, stress, plastic, f_int,
-                 reaction(ops, constrained.dofs, f_int, f_ext, v, a), cohesive)
+    return starting_state(problem, ops, constrained, u, v0, (stress, plastic, cohesive), f_int)

@@ -153,9 +153,18 @@ def initial_state(problem, law, ops: Operators, v0: np.ndarray | None,
     stress, plastic, _ = law.update(strain, law.initial_state(ops.weights.shape))
     f_coh, _, cohesive = cohesive_force(ops, u, None)
     f_int = ops.strain_operator.internal_force(stress) + f_coh
-    v = np.zeros(n) if v0 is None else v0.copy()
+    return starting_state(problem, ops, constrained, u, v0, (stress, plastic, cohesive), f_int)
+
+
+def starting_state(problem, ops: Operators, constrained, u: np.ndarray,
+                   v0: np.ndarray | None, material: tuple, f_int: np.ndarray) -> State:
+    """The state at t = 0 at ``u`` (supports already at their values), moving with ``v0``
+    (supports at rest), with ``material = (stress, plastic, cohesive)`` and its internal
+    force ``f_int``: with mass, the acceleration that balances the loads at t = 0."""
+    stress, plastic, cohesive = material
+    v = np.zeros(problem.space.n_dofs) if v0 is None else np.array(v0, dtype=float)
     v[constrained.dofs] = 0.0  # supports start at rest
-    a = np.zeros(n)
+    a = np.zeros(problem.space.n_dofs)
     f_ext = problem.external_force(0.0)
     if ops.mass is None:
         return State(0.0, u, v, a, stress, plastic, f_int,
