@@ -227,6 +227,8 @@ SUPPORTED = [{"type": "fixed", "boundary": "xmin"}]
     ({"field": {"z": "x.real"}}, "initial_displacement.field.z", "is not allowed"),
     ({"field": {"z": "L * x"}}, "initial_displacement.field.z", "unknown name 'L'"),
     ({"field": {"z": "1 / x"}}, "initial_displacement.field.z", "not finite at"),
+    ({"field": {"z": "1" + "0" * 400 + " * x"}}, "initial_displacement.field.z",
+     "must be a finite float"),
     ({"field": {"z": "0.01"}}, "initial_displacement.field",
      "does not meet the supports: uz = 0.01"),
     ({"field": {"constants": {"x": 1.0}}}, "initial_displacement.field.constants",

@@ -58,6 +58,9 @@ def _check(node: ast.AST, names: set[str], depth: int) -> None:
     if isinstance(node, ast.Constant):
         if isinstance(node.value, bool) or not isinstance(node.value, int | float):
             raise ValueError(f"{node.value!r} is not a number")
+        if isinstance(node.value, int) and abs(node.value) > 1e300:
+            raise ValueError("a number in an expression must be a finite float, "
+                             f"got an integer of {len(str(node.value))} digits")
     elif isinstance(node, ast.Name):
         if node.id not in names:
             raise ValueError(f"unknown name '{node.id}' (known: "
