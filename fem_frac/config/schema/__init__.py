@@ -7,7 +7,8 @@ misspelt key is an error, never silently ignored. Units are the case's consisten
 One module per part of the case: :mod:`.base` (common types, the box selection),
 :mod:`.geometry` (``mesh``), :mod:`.material` (``material``, ``regions``, ``plasticity``),
 :mod:`.loads` (``load_curves``, ``boundary_conditions``, ``body_force``), :mod:`.analysis`,
-:mod:`.fracture` (``fracture``, ``fragments``), :mod:`.probes` (``probes``) and :mod:`.case`
+:mod:`.fracture` (``fracture``, ``fragments``), :mod:`.obstacles` (``obstacles``),
+:mod:`.probes` (``probes``) and :mod:`.case`
 (``output``, ``reference``, the whole :class:`Case`). Every name is importable from here.
 """
 
@@ -60,10 +61,21 @@ from .loads import (
     Traction,
 )
 from .material import Material, Plasticity, Region
+from .obstacles import (
+    MAX_OBSTACLES,
+    BoxObstacle,
+    CylinderObstacle,
+    MeshObstacle,
+    Obstacle,
+    Orientation,
+    PlaneObstacle,
+    SphereObstacle,
+)
 from .probes import PROBE_FIELDS, Probe
 
 __all__ = [
     "BUILTIN_CURVES",
+    "MAX_OBSTACLES",
     "NEWMARK_BETA",
     "NEWMARK_GAMMA",
     "PROBE_FIELDS",
@@ -72,11 +84,13 @@ __all__ = [
     "BodyForce",
     "BoundaryCondition",
     "BoxGeometry",
+    "BoxObstacle",
     "BoxSelection",
     "Case",
     "ConstantCurve",
     "CurveName",
     "CylinderGeometry",
+    "CylinderObstacle",
     "Displacement",
     "DynamicAnalysis",
     "Equilibrium",
@@ -93,10 +107,14 @@ __all__ = [
     "LinearSolver",
     "LoadCurve",
     "Material",
+    "MeshObstacle",
     "MeshSection",
     "NonNegativeFloat",
+    "Obstacle",
+    "Orientation",
     "Output",
     "Perturbation",
+    "PlaneObstacle",
     "Plasticity",
     "PositiveFloat",
     "PositiveInt",
@@ -112,6 +130,7 @@ __all__ = [
     "Section",
     "Smoothing",
     "SphereGeometry",
+    "SphereObstacle",
     "StaticAnalysis",
     "Symmetry",
     "TableCurve",

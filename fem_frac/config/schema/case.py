@@ -12,6 +12,7 @@ from .fracture import Fracture, Fragments
 from .geometry import MeshSection
 from .loads import BodyForce, BoundaryCondition, LoadCurve
 from .material import Material, Plasticity, Region
+from .obstacles import MAX_OBSTACLES, Obstacle
 from .probes import MAX_PROBES, Probe
 
 
@@ -84,6 +85,9 @@ class Case(Section):
     analysis: Analysis = StaticAnalysis()
     fracture: Fracture | None = None
     fragments: Fragments | None = None
+    obstacles: list[Obstacle] = Field(
+        default=[], max_length=MAX_OBSTACLES, description="rigid bodies and planes of the "
+        "scene (fixed, or flying from an initial velocity); they need a fragments section")
     reference: Reference | None = None
     output: Output = Output()
     probes: list[Probe] = Field(
