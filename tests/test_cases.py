@@ -67,6 +67,31 @@ def test_case_runs_and_writes_readable_output(case, tmp_path):
     # central difference only up to the O((omega dt)^2) share of the highest modes
     explicit = "central_difference" in text
     assert max(history["energy_error_relative"]) < (1e-2 if explicit else 1e-6)
+    if "fragments:" in text:  # bodies do not pass through each other (last: may xfail)
+        check_no_overlap(case, out)
+
+
+# Cases whose bodies still pass through each other, and why; a case that comes within the
+# tolerance fails here until it is taken off the list.
+OVERLAP_PENDING = {
+    "breaking_beam": "no contact between bodies yet: the halves cut into each other and "
+                     "into the clamped stubs (fem-frac overlap: up to 19 % of a piece's "
+                     "size)",
+}
+
+
+def check_no_overlap(case: Path, out: Path) -> None:
+    """At every frame, no body lies deeper in another (or below a ground plane) than
+    ``TOLERANCE`` (1 %) of the smaller one's size (fem_frac.app.overlap)."""
+    from fem_frac.app.overlap import TOLERANCE, run_overlaps
+
+    worst = max(run_overlaps(out), key=lambda o: o.fraction)
+    within = worst.fraction <= TOLERANCE
+    if case.stem in OVERLAP_PENDING:
+        assert not within, f"{case.stem} is now within the overlap tolerance: unlist it"
+        pytest.xfail(OVERLAP_PENDING[case.stem])
+    assert within, (f"{worst.depth:.3g} deep between {worst.pair} at t = {worst.time:g}: "
+                    f"{100 * worst.fraction:.3g} % of the smaller body's size")
 
 
 def check_cracks_open(out: Path, name: str, summary: dict, history: dict, first, last) -> None:

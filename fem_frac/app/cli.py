@@ -50,6 +50,7 @@ def _parser() -> argparse.ArgumentParser:
     _check_parser(sub)
     _study_parser(sub)
     _plot_parser(sub)
+    _overlap_parser(sub)
     return p
 
 
@@ -134,6 +135,33 @@ def _plot_parser(sub) -> None:
                       help="output directory of `fem-frac run`")
 
 
+def _overlap_parser(sub) -> None:
+    overlap = sub.add_parser(
+        "overlap",
+        help="how deep the bodies of a run's output lie in each other, frame by frame",
+        description="Read every frame of a run's series (and its ground planes) and print "
+        "the deepest overlap of each frame where bodies (pieces of the finite-element "
+        "part, rigid fragments, ground planes) lie in each other: the largest depth of a "
+        "surface point of one body inside another, against the smaller body's size "
+        "(V^(1/3)). Exit 0 when every frame is within 1 %% of it, 1 when one is not, 2 "
+        "when the directory holds no series. Needs pyvista.",
+    )
+    overlap.add_argument("directory", type=Path, metavar="OUT_DIR",
+                         help="output directory of `fem-frac run`")
+
+
+def _overlap(args) -> int:
+    from .overlap import TOLERANCE, OverlapError, report, run_overlaps
+
+    try:
+        overlaps = run_overlaps(args.directory)
+    except (OverlapError, OSError) as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
+    print(report(overlaps))
+    return 0 if max(o.fraction for o in overlaps) <= TOLERANCE else 1
+
+
 def _plot(args) -> int:
     from .plot import PlotError, plot_run
 
@@ -157,6 +185,8 @@ def main(argv: list[str] | None = None) -> int:
         return _study(args)
     if args.command == "plot":
         return _plot(args)
+    if args.command == "overlap":
+        return _overlap(args)
     from ..config import CaseErrors, load_case
 
     source = None
