@@ -92,8 +92,8 @@ class RigidStage:
     name = "fragments"
 
     def __init__(self, config: schema.Fragments, timer: StageTimer,
-                 log: Callable[[str], None] | None = None):
-        self.config, self.timer = config, timer
+                 log: Callable[[str], None] | None = None, obstacles: tuple = ()):
+        self.config, self.timer, self.obstacles = config, timer, tuple(obstacles)
         self.log = log or (lambda _: None)
 
     def __call__(self, step: Step, world: World) -> tuple[World, HandOffEvent | None]:
