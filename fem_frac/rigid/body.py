@@ -76,6 +76,25 @@ def make_body(
     )
 
 
+def fixed_body(points, position=(0.0, 0.0, 0.0),
+               orientation=(1.0, 0.0, 0.0, 0.0)) -> RigidBody:
+    """A fixed obstacle as a body: infinite mass and moments (inverse mass and inverse
+    inertia zero, :func:`inverse_mass`, :func:`inverse_moments`), at rest. Contact between
+    bodies (:mod:`~fem_frac.rigid.pairs`) treats it as any body, and it receives no impulse;
+    it is never moved (its velocity is zero: momentum 0 over mass inf)."""
+    q = np.asarray(orientation, dtype=float)
+    return RigidBody(mass=np.inf, inertia=np.full(3, np.inf),
+                     position=np.asarray(position, dtype=float),
+                     orientation=q / np.linalg.norm(q), momentum=np.zeros(3),
+                     angular_momentum=np.zeros(3),
+                     points=np.asarray(points, dtype=float).reshape(-1, 3))
+
+
+def inverse_mass(body: RigidBody) -> float:
+    """``1 / mass``; 0 for a fixed body (infinite mass)."""
+    return 0.0 if np.isinf(body.mass) else 1.0 / body.mass
+
+
 def rotation_matrix(q) -> np.ndarray:
     """(3, 3) rotation of the unit quaternion ``q`` (4,) = (w, x, y, z)."""
     w, x, y, z = q

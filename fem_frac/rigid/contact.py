@@ -47,6 +47,10 @@ from .motion import free_flight
 # the largest velocity before the impulses.
 _TOLERANCE = 1e-13
 _ITERATIONS = 200
+# Sweeps between tries of the exact solution on the active set (:func:`_polish`), and its
+# slack: round-off of a least-squares solve, as a fraction of the velocities.
+_POLISH_EVERY = 10
+_ROUND_OFF = 1e-12
 
 
 @dataclass(frozen=True, eq=False)
@@ -76,7 +80,7 @@ def signed_distance(plane: Plane, x) -> np.ndarray:
     return (np.asarray(x, dtype=float) - plane.point) @ plane.normal
 
 
-def _basis(n: np.ndarray) -> np.ndarray:
+def contact_frame(n: np.ndarray) -> np.ndarray:
     """(3, 3) rows n, t1, t2: an orthonormal frame with the normal first."""
     helper = np.eye(3)[int(np.argmin(np.abs(n)))]
     t1 = np.cross(n, helper)
@@ -112,7 +116,7 @@ def find_contacts(body: RigidBody, planes, horizon: float) -> Contacts:
     for plane in planes:
         gap, vn = signed_distance(plane, x), vel @ plane.normal
         hit = np.flatnonzero((gap < 0.0) | ((gap + horizon * vn <= 0.0) & (vn < 0.0)))
-        frame = _basis(plane.normal)
+        frame = contact_frame(plane.normal)
         rows += [(arm[i], frame, gap[i], -vn[i], plane.restitution, plane.friction)
                  for i in hit]
     if not rows:
@@ -160,17 +164,21 @@ def _friction_impulse(k, f, radius):
     return -q @ (g / (w + sigma))
 
 
-def _sequential_impulses(a, b, target, friction, iterations=_ITERATIONS):
+def _sequential_impulses(a, b, target, friction, iterations=_ITERATIONS, polish=False,
+                         scale=None):
     """(3c,) accumulated impulses: normal velocity ``>= target``, friction in the disc.
 
     a: (3c, 3c) Delassus matrix ``J M^-1 J^T``; b: (3c,) velocities before; target: (c,).
     Each update minimizes the kinetic energy over one point's impulses (block Gauss-Seidel),
     so with the normal impulses fixed the friction sweeps converge to the exact minimum.
+    polish: every ``_POLISH_EVERY`` sweeps, try the exact solution on the sweeps' active set
+    (:func:`_polish`) and stop if it holds (Gauss-Seidel converges slowly through a stack
+    of bodies). scale: of the velocities, for the stopping test (default ``max |b|``).
     """
     lam = np.zeros_like(b)
-    scale = float(np.abs(b).max()) + 1e-300
+    scale = (float(np.abs(b).max()) if scale is None else scale) + 1e-300
     before = b.copy()
-    for _ in range(iterations):
+    for sweep in range(1, iterations + 1):
         for i in range(len(target)):
             j = 3 * i
             lam[j] = max(lam[j] + (target[i] - b[j] - a[j] @ lam) / a[j, j], 0.0)
@@ -185,7 +193,52 @@ def _sequential_impulses(a, b, target, friction, iterations=_ITERATIONS):
         if np.abs(velocities - before).max() <= _TOLERANCE * scale:
             break
         before = velocities
+        if polish and sweep % _POLISH_EVERY == 0:
+            exact = _polish(a, b, lam, target, friction, scale)
+            if exact is not None:
+                return exact
     return lam
+
+
+def _polish(a, b, lam, target, friction, scale):
+    """The exact impulses on the active set of ``lam`` (3c,), or ``None`` if they break a
+    condition. Points with a normal impulse are active: sticking ones (inside the friction
+    disc) reach ``v_n = target``, ``v_t = 0``; sliding ones (on the rim) ``v_n = target``
+    with ``lambda_t = mu lambda_n s`` along their present direction ``s``. That linear
+    system is solved by least squares (its minimum-norm solution: more points than freedoms
+    leave it singular), then checked: ``lambda_n >= 0``, sticking impulses in the disc,
+    sliding velocities against ``s``, every point's ``v_n >= target`` (to ``_ROUND_OFF`` of
+    the velocities)."""
+    c = len(target)
+    pts = lam.reshape(c, 3)
+    active = pts[:, 0] > 0.0
+    tangential = np.linalg.norm(pts[:, 1:], axis=1)
+    sliding = active & (friction > 0.0) & (tangential >= friction * pts[:, 0] * (1 - 1e-9))
+    sticking = active & (friction > 0.0) & ~sliding
+    # the unknowns: one column of lam per unknown
+    rows_n, rows_t = 3 * np.flatnonzero(active), 3 * np.flatnonzero(sticking)
+    rows = np.sort(np.concatenate([rows_n, rows_t + 1, rows_t + 2]))
+    basis = np.zeros((3 * c, rows.size))
+    basis[rows, np.arange(rows.size)] = 1.0
+    slide = np.flatnonzero(sliding)
+    direction = pts[slide, 1:] / tangential[slide, None]
+    col = np.searchsorted(rows, 3 * slide)
+    basis[3 * slide + 1, col] = friction[slide] * direction[:, 0]
+    basis[3 * slide + 2, col] = friction[slide] * direction[:, 1]
+    rhs = np.zeros(3 * c)
+    rhs[0::3] = target
+    x = np.linalg.lstsq((a @ basis)[rows], (rhs - b)[rows], rcond=None)[0]
+    exact = basis @ x
+    v = (b + a @ exact).reshape(c, 3)
+    pts = exact.reshape(c, 3)
+    slack = _ROUND_OFF * scale
+    inside = np.linalg.norm(pts[:, 1:], axis=1) <= friction * pts[:, 0] * (1 + 1e-12) + slack
+    against = np.einsum("ij,ij->i", v[slide, 1:], direction) <= slack
+    along = np.abs(v[slide, 1] * direction[:, 1] - v[slide, 2] * direction[:, 0]) <= slack
+    if (np.all(pts[:, 0] >= 0.0) and np.all(v[:, 0] >= target - slack)
+            and np.all(inside[sticking]) and np.all(against) and np.all(along)):
+        return exact
+    return None
 
 
 def _apply(body: RigidBody, jac: np.ndarray, lam: np.ndarray) -> RigidBody:
@@ -209,6 +262,40 @@ def _restitution_scale(a, b, lam, rebound) -> float:
     return float(min(max((-g + np.sqrt(g * g + 4.0 * h * loss)) / (2.0 * h), 0.0), 1.0))
 
 
+def poisson_impulses(a, b, target, friction, restitution, polish=False,
+                     scale=None) -> np.ndarray:
+    """(3c,) contact impulses (normal, t1, t2 per point) of Poisson's restitution.
+
+    a: (3c, 3c) Delassus matrix ``J M^-1 J^T`` of any number of bodies (a fixed body has
+    ``M^-1 = 0``); b: (3c,) contact velocities before; target: (c,) least normal velocity of
+    the compression phase; friction: (c,) mu; restitution: (c,) e of each point (0 where it
+    rests). Compression, then e times its impulse again, scaled down only if that would add
+    energy (round-off with one e), then an inelastic frictionless pass for the points another
+    point's rebound drives in. Each phase cannot add kinetic energy (module docstring).
+    polish, scale: of :func:`_sequential_impulses` (exact solutions for stacks of bodies).
+    """
+    lam = _sequential_impulses(a, b, target, friction, polish=polish, scale=scale)
+    e = np.repeat(restitution, 3)
+    if not np.any(e):
+        return lam
+    # guard: with a uniform e the scale is 1 to round-off (the proof in the module docstring)
+    lam = lam + _restitution_scale(a, b, lam, e * lam) * e * lam
+    # restitution at one point can drive another into the plane (Poisson's law at several
+    # points); a last inelastic, frictionless pass stops that. Each of its updates minimizes
+    # the kinetic energy over one impulse, so it cannot add energy
+    return lam + _sequential_impulses(a, b + a @ lam, target, np.zeros_like(target),
+                                      polish=polish, scale=scale)
+
+
+def targets(gap, approach, restitution, dt: float, v_rest: float):
+    """``(target (c,), e (c,))`` of contact points: those approaching faster than ``v_rest``
+    bounce (target 0, their e), the others rest (e = 0) with the speculative target
+    ``v_n >= -gap / dt`` (a point may close its gap within the step, no more)."""
+    bouncing = approach > v_rest
+    target = np.where(bouncing, 0.0, -np.maximum(gap, 0.0) / dt)
+    return target, np.where(bouncing, restitution, 0.0)
+
+
 def resolve(body: RigidBody, contacts: Contacts, dt: float, v_rest: float) -> RigidBody:
     """The body with contact impulses applied to its momenta; position and orientation kept.
 
@@ -224,19 +311,8 @@ def resolve(body: RigidBody, contacts: Contacts, dt: float, v_rest: float) -> Ri
     omega = inv_mass[3:, 3:] @ body.angular_momentum
     b = jac @ np.concatenate([body.momentum / body.mass, omega])
     a = jac @ inv_mass @ jac.T
-    bouncing = contacts.approach > v_rest
-    target = np.where(bouncing, 0.0, -np.maximum(contacts.gap, 0.0) / dt)
-    lam = _sequential_impulses(a, b, target, contacts.friction)
-    e = np.repeat(np.where(bouncing, contacts.restitution, 0.0), 3)
-    if not np.any(e):
-        return _apply(body, jac, lam)
-    # guard: with a uniform e the scale is 1 to round-off (the proof in the module docstring)
-    lam = lam + _restitution_scale(a, b, lam, e * lam) * e * lam
-    # restitution at one vertex can drive another into the plane (Poisson's law at several
-    # points); a last inelastic, frictionless pass stops that. Each of its updates minimizes
-    # the kinetic energy over one impulse, so it cannot add energy
-    lam = lam + _sequential_impulses(a, b + a @ lam, target, np.zeros_like(target))
-    return _apply(body, jac, lam)
+    target, e = targets(contacts.gap, contacts.approach, contacts.restitution, dt, v_rest)
+    return _apply(body, jac, poisson_impulses(a, b, target, contacts.friction, e))
 
 
 def project(body: RigidBody, planes, sweeps: int = 2) -> RigidBody:

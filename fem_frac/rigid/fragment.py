@@ -48,7 +48,9 @@ class RigidFragment:
     ``strain``: the piece's kinetic and strain energy in the finite elements at hand-off;
     ``resting``: steps it has rested on the ground (see fem_frac.rigid.stage); ``loads``:
     the surface loads that left the finite elements with it
-    (:class:`~fem_frac.rigid.loads.RigidLoad`)."""
+    (:class:`~fem_frac.rigid.loads.RigidLoad`); ``contact_impulse``: the impulses it
+    received in the last step from other bodies and from planes and fixed obstacles (sums
+    of the sizes of the contact points' impulses, :func:`~fem_frac.rigid.pairs.step_all`)."""
 
     body: RigidBody
     nodes: np.ndarray
@@ -62,6 +64,7 @@ class RigidFragment:
     strain: float = 0.0
     resting: int = 0
     loads: tuple = ()
+    contact_impulse: tuple[float, float] = (0.0, 0.0)
 
     def world(self) -> np.ndarray:
         """World positions ``(k, 3)`` of the nodes."""

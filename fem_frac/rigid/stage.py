@@ -2,11 +2,12 @@
 rigid bodies.
 
 Every step, the rigid bodies are moved over the interval by
-:func:`~fem_frac.rigid.contact.step` (gravity exact, torque-free rotation by exact
-principal-axis rotations, ground planes by impulses), between half kicks by the loads that
-left with them (:func:`~fem_frac.rigid.loads.advance`). Then every piece of the deformable
-body that no support holds is a candidate; the ``fragments`` section decides which become
-rigid. Each is handed over (:func:`~fem_frac.rigid.fragment.rigid_piece`: momenta kept
+:func:`~fem_frac.rigid.pairs.step_all` (gravity exact, torque-free rotation by exact
+principal-axis rotations, ground planes, fixed obstacles and each other by impulses; a body
+that touches no other body takes :func:`~fem_frac.rigid.contact.step`), between half kicks
+by the loads that left with them (:func:`~fem_frac.rigid.loads.kick`). Then every piece of
+the deformable body that no support holds is a candidate; the ``fragments`` section decides
+which become rigid. Each is handed over (:func:`~fem_frac.rigid.fragment.rigid_piece`: momenta kept
 exactly), its elements leave the finite-element mesh
 (:func:`~fem_frac.fracture.topology.extract`), and the body is discretized once more for all
 pieces of the step. The tractions and pressures on the piece's nodes go with it
@@ -31,10 +32,12 @@ from ..timing import StageTimer
 from ..world.stage import Step
 from ..world.state import Body, World, body_of
 from ..world.transfer import carry, rediscretize
+from . import loads as rigid_loads
 from .body import kinetic_energy
 from .contact import Plane
 from .fragment import RigidFragment, rigid_piece
-from .loads import advance, piece_loads
+from .loads import piece_loads
+from .pairs import PairLaw, step_all
 
 # Steps at rest on the ground after which a rigid body sleeps (see RigidStage.move).
 SLEEP_STEPS = 20
@@ -59,30 +62,53 @@ def planes(config: schema.Fragments) -> tuple[Plane, ...]:
 
 
 def move(fragments: tuple[RigidFragment, ...], t0: float, t1: float, gravity: np.ndarray,
-         obstacles: tuple[Plane, ...], substeps: int) -> tuple[RigidFragment, ...]:
+         obstacles: tuple[Plane, ...], substeps: int, law: PairLaw | None = None,
+         fixed: tuple = ()) -> tuple[RigidFragment, ...]:
     """Every rigid body from ``t0`` to ``t1`` in ``substeps`` contact steps, under gravity and
-    its loads (:func:`~fem_frac.rigid.loads.advance`).
+    its loads (half kicks of :func:`~fem_frac.rigid.loads.kick` about each step of
+    :func:`~fem_frac.rigid.pairs.step_all`: the planes ``obstacles``, the ``fixed`` bodies
+    (:class:`~fem_frac.rigid.pairs.FixedBody` or any object with ``body``, ``restitution``,
+    ``friction``) and each other, with ``law`` between two bodies, default e = mu = 0).
 
-    A body that has rested on the ground for ``SLEEP_STEPS`` steps (kinetic energy below
-    what one step of free fall from rest gives it, no load acting) sleeps: only its loads
-    can wake it (no body-body contact, fixed planes, constant gravity), so it is not stepped
-    while their curves are zero at the substeps' ends (all the kicks see)."""
+    A body that has rested for ``SLEEP_STEPS`` steps (kinetic energy below what one step of
+    free fall from rest gives it, no load acting) sleeps: it is not stepped while its loads'
+    curves are zero at the substeps' ends (all the kicks see) and no moving body reaches it
+    (then it wakes). Each fragment keeps the impulses it received (``contact_impulse``)."""
+    law = law or PairLaw()
     h = (t1 - t0) / substeps
     quiet = 0.5 * float(gravity @ gravity) * h * h
     times = [t0 + (t1 - t0) * i / substeps for i in range(substeps)] + [t1]
+    loaded = np.array([any(float(load.factor(t)) != 0.0 for load in f.loads for t in times)
+                       for f in fragments], dtype=bool)
+    asleep = np.array([f.resting >= SLEEP_STEPS for f in fragments], dtype=bool) & ~loaded
+    moving = np.array([f.resting == 0 for f in fragments], dtype=bool)
+    bodies = [f.body for f in fragments]
+    impulses = np.zeros((len(fragments), 2))
+    woke = np.zeros(len(fragments), dtype=bool)
+    for t in times[:-1]:
+        bodies = _kicks(bodies, fragments, asleep, t, 0.5 * h)
+        bodies, received, woken, _ = step_all(bodies, asleep, moving, h, gravity, obstacles,
+                                              fixed, law)
+        asleep, woke, impulses = asleep & ~woken, woke | woken, impulses + received
+        bodies = _kicks(bodies, fragments, asleep, t + h, 0.5 * h)
+    supported = bool(obstacles) or bool(fixed) or len(fragments) > 1
     moved = []
-    for f in fragments:
-        loaded = any(float(load.factor(t)) != 0.0 for load in f.loads for t in times)
-        if f.resting >= SLEEP_STEPS and not loaded:
+    for k, f in enumerate(fragments):
+        if asleep[k]:
             moved.append(f)
             continue
-        body = f.body
-        for t in times[:-1]:
-            body = advance(body, f.loads, t, h, gravity, obstacles)
-        resting = (not loaded and obstacles and quiet > 0
-                   and kinetic_energy(body) < quiet * body.mass)
-        moved.append(replace(f, body=body, resting=f.resting + 1 if resting else 0))
+        resting = (not loaded[k] and supported and quiet > 0
+                   and kinetic_energy(bodies[k]) < quiet * bodies[k].mass)
+        count = f.resting + 1 if resting and not woke[k] else 0
+        moved.append(replace(f, body=bodies[k], resting=count,
+                             contact_impulse=(float(impulses[k, 0]), float(impulses[k, 1]))))
     return tuple(moved)
+
+
+def _kicks(bodies, fragments, asleep, t: float, dt: float) -> list:
+    """The awake bodies after ``dt`` times their loads at time ``t``."""
+    return [b if asleep[k] else rigid_loads.kick(b, fragments[k].loads, t, dt)
+            for k, b in enumerate(bodies)]
 
 
 class RigidStage:
@@ -95,6 +121,10 @@ class RigidStage:
                  log: Callable[[str], None] | None = None, obstacles: tuple = ()):
         self.config, self.timer, self.obstacles = config, timer, tuple(obstacles)
         self.log = log or (lambda _: None)
+        # the fixed ones among the obstacles that are bodies (moving ones are rigid bodies of
+        # the world); they touch the rigid bodies as bodies of infinite mass
+        self.fixed = tuple(o for o in self.obstacles if np.isinf(o.body.mass))
+        self.law = PairLaw(config.body_contact.restitution, config.body_contact.friction)
 
     def __call__(self, step: Step, world: World) -> tuple[World, HandOffEvent | None]:
         if step.initial:
@@ -104,7 +134,8 @@ class RigidStage:
                 return self._without(world, [(np.arange(body.mesh.n_tets), whole)], 0)
             return world, None
         world = replace(world, rigid=move(world.rigid, step.start.t, step.t, world.gravity,
-                                          world.obstacles, self.config.contact_substeps))
+                                          world.obstacles, self.config.contact_substeps,
+                                          self.law, self.fixed))
         if world.body is None or self.config.become_rigid == "never":
             return world, None
         pieces = self.free_pieces(world.body, len(world.rigid))

@@ -121,6 +121,14 @@ class Ground(Section):
         return self
 
 
+class BodyContact(Section):
+    """Contact between two rigid bodies: they bounce with ``restitution`` (0: no bounce, 1:
+    elastic) and slide with Coulomb ``friction``."""
+
+    restitution: Annotated[float, Field(ge=0.0, le=1.0)] = 0.5
+    friction: NonNegativeFloat = 0.5
+
+
 class Fragments(Section):
     """Pieces that break free (no support left) become rigid bodies: ``all`` of them,
     those no larger than ``max_volume`` (``small``), or each once its vibration has decayed
@@ -128,7 +136,7 @@ class Fragments(Section):
     its rigid kinetic energy); ``never`` keeps them deformable. ``whole_body`` makes the
     whole body one rigid body from the start (no finite elements: ``analysis`` gives the time
     steps and the initial velocity). ``gravity`` (default: ``body_force.gravity``) acts on
-    rigid bodies; ``ground`` planes stop them."""
+    rigid bodies; ``ground`` planes stop them; ``body_contact``: between two of them."""
 
     become_rigid: Literal["all", "small", "settled", "never"] = "all"
     max_volume: PositiveFloat | None = None
@@ -136,6 +144,7 @@ class Fragments(Section):
     whole_body: bool = False
     gravity: Vector3 | None = None
     ground: list[Ground] = []
+    body_contact: BodyContact = BodyContact()
     contact_substeps: PositiveInt = Field(
         default=1, description="rigid-body steps per analysis step (finer contact resolution)")
 
