@@ -26,7 +26,7 @@ from ..world.equilibrium import EquilibriumStage
 from ..world.stage import Stage, march
 from ..world.state import World, body_of
 from ..writers.directory import Manifest, check_directory, prepare_directory
-from ..writers.ground import write_ground
+from ..writers.ground import ObstacleSeries, write_ground
 from ..writers.history import HistoryWriter
 from ..writers.paraview import view_scale, write_paraview_script
 from ..writers.series import SeriesWriter
@@ -54,6 +54,7 @@ class Setup:
     grid: TimeGrid
     disc: Discretization
     case_dir: Path = Path(".")  # where the case file lies (paths in it are relative to it)
+    obstacles: tuple = ()  # the case's obstacles (fem_frac.rigid.obstacles.Obstacle)
 
     @property
     def dynamic(self) -> bool:
@@ -111,6 +112,9 @@ def prepare(case: Case, case_dir: Path, timer: StageTimer, log: Log = quiet,
     check_reference(case)
     check_initial(case, case_dir)
     check_budget(case, case_dir, bounds)
+    from ..rigid.obstacles import build_obstacles
+
+    obstacles = build_obstacles(case.obstacles, case_dir, case.fragments is not None)
     with timer("mesh"):
         mesh = build_mesh(case.mesh, case_dir)
     log(f"mesh       {mesh.n_tets:,} tets, {mesh.n_points:,} vertices")
@@ -126,7 +130,7 @@ def prepare(case: Case, case_dir: Path, timer: StageTimer, log: Log = quiet,
     initial = describe_initial(case, disc.space, disc.problem, case_dir)
     if initial is not None:
         log(f"initial    {initial}")
-    return Setup(case, grid, disc, case_dir)
+    return Setup(case, grid, disc, case_dir, obstacles)
 
 
 def whole_body(case: Case) -> bool:
@@ -155,13 +159,18 @@ def start(setup: Setup, timer: StageTimer, log: Log = quiet) -> tuple[World, Tal
     body = body_of(d, state)
     world = World(0.0, body, initial_ledger(state, d.law, d.ops))
     if case.fragments is not None:
+        from ..rigid import obstacles as obstacle
+        from ..rigid.obstacle_output import rigid_bodies
         from ..rigid.stage import planes
 
         f = case.fragments
         gravity = f.gravity if f.gravity is not None else (
             case.body_force.gravity if case.body_force is not None else (0.0, 0.0, 0.0))
-        world = World(0.0, body, world.ledger, obstacles=planes(f),
-                      gravity=np.asarray(gravity, dtype=float))
+        # moving obstacles are the first rigid bodies; obstacle planes join the ground
+        world = World(0.0, body, world.ledger,
+                      obstacles=planes(f) + obstacle.planes(setup.obstacles),
+                      gravity=np.asarray(gravity, dtype=float),
+                      rigid=rigid_bodies(setup.obstacles, d.space.order))
     return world, Tally(body, solver, factorizations)
 
 
@@ -175,9 +184,10 @@ def stages(setup: Setup, timer: StageTimer, log: Log = quiet) -> list[Stage]:
         out.append(FractureStage(case.fracture, setup.dynamic, timer, log,
                                  getattr(log, "note", None)))
     if case.fragments is not None:
+        from ..rigid.obstacles import bodies
         from ..rigid.stage import RigidStage
 
-        out.append(RigidStage(case.fragments, timer, log))
+        out.append(RigidStage(case.fragments, timer, log, obstacles=bodies(setup.obstacles)))
     return out
 
 
@@ -276,7 +286,9 @@ def _run(setup: Setup, case_path: Path, name: str, manifest: Manifest, status: R
 
         ground = write_ground(manifest, name, planes(case.fragments), setup.disc.mesh.points)
     series = SeriesWriter(out_dir, name, manifest=manifest)
-    world, tally, record = _march(setup, manifest, series, status, timer, log)
+    shown = _obstacle_series(setup, manifest, name)
+    world, tally, record = _march(setup, manifest, series, status, timer, log,
+                                  () if shown is None else (shown,))
     result = _summary(case, case_path, setup, world, tally, timer, log, record)
     result["output"] = {"pvd": str(series.pvd_path), "steps": len(series.entries),
                         "history": str(out_dir / "history.csv")}
@@ -285,10 +297,23 @@ def _run(setup: Setup, case_path: Path, name: str, manifest: Manifest, status: R
     manifest.add(f"{name}_view.py")
     result["output"]["view"] = str(write_paraview_script(
         out_dir, name, view_scale(result["max_displacement"], setup.disc.mesh.points),
-        case.fracture is not None and case.output.crack_surface, ground=ground is not None))
+        case.fracture is not None and case.output.crack_surface, ground=ground is not None,
+        obstacles=shown is not None))
     if ground is not None:
         result["output"]["ground"] = str(ground)
+    if shown is not None:
+        result["output"]["obstacles"] = str(shown.series.pvd_path)
     return result
+
+
+def _obstacle_series(setup: Setup, manifest: Manifest, name: str) -> ObstacleSeries | None:
+    """The series of the case's fixed obstacles and planes (``None`` without any)."""
+    from ..rigid.obstacle_output import fixed_surface
+
+    surface = fixed_surface(setup.obstacles, setup.disc.mesh.points)
+    if surface is None:
+        return None
+    return ObstacleSeries(manifest, name, output_plan(setup.case, setup.grid).due, *surface)
 
 
 def _known(setup: Setup, case_path: Path, status: RunStatus, timer: StageTimer) -> dict:
@@ -315,7 +340,7 @@ def _wall(timer: StageTimer) -> dict:
 
 
 def _march(setup: Setup, manifest: Manifest, series: SeriesWriter, status: RunStatus,
-           timer: StageTimer, log: Log):
+           timer: StageTimer, log: Log, shown: tuple = ()):
     """Every step of the case with its output: the last world, the tally and the
     reference's recorder (``None`` when the case declares none that needs one)."""
     case, out_dir = setup.case, manifest.directory
@@ -325,7 +350,7 @@ def _march(setup: Setup, manifest: Manifest, series: SeriesWriter, status: RunSt
     status.tally = tally
     record = recorder(case, setup.disc.problem)
     probes = probe_recorder(case, manifest, series.name)
-    observers = tuple(o for o in (record, probes) if o is not None) + (status,)
+    observers = tuple(o for o in (record, probes) if o is not None) + shown + (status,)
     with HistoryWriter(manifest.add("history.csv")) as history:
         output = OutputStage(output_plan(case, setup.grid), layout_of(case), series, history,
                              tally, timer, cracks, Progress(log, setup.grid.steps), observers)

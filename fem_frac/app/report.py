@@ -16,6 +16,8 @@ from ..fem.loads import facet_basis
 from ..mesh.build import build_mesh, mesh_file_path
 from ..mesh.mesh import min_dihedral_angles
 from ..mesh.selection import boundary_names, box_face_area, box_facets, named_facets
+from ..rigid.obstacle_output import describe
+from ..rigid.obstacles import build_obstacles
 from ..solve.discretization import check_model, model_on
 from ..solve.loading import time_grid
 from ..solve.problem import outer_facets
@@ -90,9 +92,15 @@ def check_report(case: Case, source: Source) -> str:
         lines += _fracture_lines(case, mesh, materials)
     if isinstance(case.analysis, DynamicAnalysis):
         lines += _time_step_lines(recipe, space, materials, problem)
-    lines.append("plan")
+    lines += _obstacle_lines(case, source.path.parent) + ["plan"]
     lines.append(format_plan(make_plan(case)))
     return "\n".join(lines)
+
+
+def _obstacle_lines(case: Case, case_dir: Path) -> list[str]:
+    """The obstacles, one a line: kind, size, centre, mass and initial motion."""
+    obstacles = build_obstacles(case.obstacles, case_dir, case.fragments is not None)
+    return ["obstacles", *(f"  {describe(o)}" for o in obstacles)] if obstacles else []
 
 
 def _material_lines(case: Case, space, materials) -> list[str]:
@@ -233,13 +241,17 @@ def _implicit_note(analysis) -> str:
 
 
 def resolved_case(case: Case, source: Source, directory: Path, name: str) -> Case:
-    """``case`` made self-contained: absolute mesh file path and the actual output place."""
+    """``case`` made self-contained: absolute mesh file paths (the mesh's, the obstacles')
+    and the actual output place."""
     mesh = case.mesh
     if mesh.file is not None:
         path = mesh_file_path(mesh, source.path.parent).resolve()
         mesh = mesh.model_copy(update={"file": str(path)})
+    obstacles = [o.model_copy(update={"file": str((source.path.parent / Path(o.file)
+                                                   .expanduser()).resolve())})
+                 if o.type == "mesh" else o for o in case.obstacles]
     output = case.output.model_copy(update={"directory": str(directory), "name": name})
-    return case.model_copy(update={"mesh": mesh, "output": output})
+    return case.model_copy(update={"mesh": mesh, "output": output, "obstacles": obstacles})
 
 
 def resolved_yaml(case: Case, source: Source) -> str:

@@ -1,4 +1,5 @@
-"""The ground planes as a picture: ``<name>_ground.vtu``, one quad per plane, written once.
+"""The ground planes as a picture: ``<name>_ground.vtu``, one quad per plane, written once;
+the fixed obstacles as a series: ``<name>_obstacles.pvd`` (:class:`ObstacleSeries`).
 
 The planes rigid fragments rest on (``fragments.ground``, the world's obstacles) are
 infinite and fixed; this file shows them in ParaView as squares under the scene. Fixed
@@ -35,6 +36,7 @@ from pathlib import Path
 import numpy as np
 
 from .directory import Manifest, create_plain
+from .series import SeriesWriter
 
 # The half side: this many bounding-box diagonals, plus this many heights above the plane.
 DIAGONALS = 1.5
@@ -111,3 +113,32 @@ def write_ground(target: Manifest | Path | str, name: str, planes: Sequence,
     meshio.write(manifest.directory / scratch, mesh, file_format="vtu", binary=True)
     os.replace(manifest.directory / scratch, path)
     return path
+
+
+class ObstacleSeries:
+    """``<name>_obstacles.pvd``: the fixed obstacles and the planes of the case's
+    ``obstacles`` at every output step, a triangle surface at world positions.
+
+    They do not move, so every frame holds the same surface (``points (n, 3)``,
+    ``triangles (t, 3)``, ``cell_data``: ``obstacle_id`` and the other fields of each
+    triangle) with a zero point field ``displacement`` (Warp By Vector leaves it in
+    place), at the times of the main series: ParaView's time steps and the
+    ``<name>_view.py`` script treat it like the other series. An observer of the output
+    stage: called with every committed step ``(n, world)``, it writes when ``due(n)``."""
+
+    def __init__(self, manifest: Manifest, name: str, due, points: np.ndarray,
+                 triangles: np.ndarray, cell_data: dict):
+        self.series = SeriesWriter(manifest.directory, obstacles_name(name), manifest=manifest)
+        self.due, self.points, self.triangles = due, np.asarray(points, dtype=float), \
+            np.asarray(triangles, dtype=np.int64)
+        self.cell_data = dict(cell_data)
+
+    def __call__(self, n: int, world) -> None:
+        if self.due(n):
+            self.series.write(world.t, self.points, ("triangle", self.triangles),
+                              {"displacement": np.zeros_like(self.points)}, self.cell_data)
+
+
+def obstacles_name(name: str) -> str:
+    """The series name (``.pvd`` without suffix) of the fixed obstacles of the run ``name``."""
+    return f"{name}_obstacles"

@@ -1,7 +1,7 @@
 """A ParaView script written beside a series: ``<name>_view.py`` opens it with sensible
 defaults (warped by ``displacement`` at a visible scale, coloured by ``von_mises``, the
-crack-face series on top when there is one, the ground planes of rigid fragments in grey
-when there are some, at the last time step).
+crack-face series on top when there is one, the ground planes of rigid fragments and the
+fixed obstacles in grey when there are some, at the last time step).
 
 Run it with ``pvpython <name>_view.py`` (renders and saves ``<name>_view.png``; add
 ``--interact`` for a window to turn the model in), with ``paraview --script=<name>_view.py``,
@@ -36,29 +36,31 @@ def view_scale(max_displacement: float, points: np.ndarray) -> float:
 
 
 def write_paraview_script(directory: Path, name: str, scale: float, has_cracks: bool,
-                          ground: bool = False) -> Path:
+                          ground: bool = False, obstacles: bool = False) -> Path:
     """Write ``<name>_view.py`` into ``directory`` (beside ``<name>.pvd`` and, with
     ``has_cracks``, ``<name>_crack.pvd``; with ``ground``, ``<name>_ground.vtu``, shown
-    unwarped in grey, half transparent); warp factor ``scale`` (see :func:`view_scale`).
+    unwarped in grey, half transparent; with ``obstacles``, ``<name>_obstacles.pvd``, the
+    fixed obstacles, in grey); warp factor ``scale`` (see :func:`view_scale`).
     Returns its path."""
     directory = Path(directory)
     path = directory / f"{name}_view.py"
-    path.write_text(script_text(name, scale, has_cracks, directory.resolve(), ground))
+    path.write_text(script_text(name, scale, has_cracks, directory.resolve(), ground,
+                                obstacles))
     return path
 
 
 def script_text(name: str, scale: float, has_cracks: bool, directory: Path,
-                ground: bool = False) -> str:
+                ground: bool = False, obstacles: bool = False) -> str:
     """The text of the view script (see the module docstring)."""
     return _TEMPLATE.format(name=repr(name), scale=repr(float(scale)),
                             cracks=repr(bool(has_cracks)), ground=repr(bool(ground)),
-                            directory=repr(str(directory)))
+                            obstacles=repr(bool(obstacles)), directory=repr(str(directory)))
 
 
 _TEMPLATE = '''\
 """ParaView view of the fem_frac series {name}: the model warped by its displacement
 (WARP times), coloured by von_mises, the crack faces coloured by their opening, the ground
-planes (fixed: not warped) in grey, half transparent.
+planes (fixed: not warped) in grey, half transparent, the fixed obstacles in grey.
 
     pvpython <this file>               renders the last step, saves NAME_view.png
     pvpython <this file> --interact    and opens a window to turn the model in
@@ -88,6 +90,7 @@ NAME = {name}
 WARP = {scale}
 CRACKS = {cracks}
 GROUND = {ground}
+OBSTACLES = {obstacles}
 # where the series was written; the folder of this file wins when it is known
 WRITTEN_IN = {directory}
 
@@ -134,6 +137,15 @@ if GROUND and os.path.exists(os.path.join(HERE, NAME + "_ground.vtu")):
     ground.AmbientColor = [0.6, 0.6, 0.6]
     ground.DiffuseColor = [0.6, 0.6, 0.6]
     ground.Opacity = 0.5
+# the fixed obstacles and planes of the case's obstacles (moving ones are in the model)
+if OBSTACLES and os.path.exists(os.path.join(HERE, NAME + "_obstacles.pvd")):
+    fixed = PVDReader(FileName=os.path.join(HERE, NAME + "_obstacles.pvd"))
+    RenameSource(NAME + " obstacles", fixed)
+    obstacles = Show(fixed, view)
+    ColorBy(obstacles, None)
+    obstacles.AmbientColor = [0.7, 0.7, 0.7]
+    obstacles.DiffuseColor = [0.7, 0.7, 0.7]
+    obstacles.Opacity = 0.6
 Render(view)
 
 # run as a program (pvpython): save a picture, and with --interact open a window
