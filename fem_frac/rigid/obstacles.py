@@ -43,13 +43,14 @@ from __future__ import annotations
 
 import contextlib
 import io
+import warnings
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
 from ..errors import CaseError
-from .body import RigidBody, make_body, quaternion_from_matrix, rotation_matrix
+from .body import RigidBody, fixed_body, make_body, quaternion_from_matrix, rotation_matrix
 from .contact import Plane
 from .fragment import contact_points
 from .mass import mass_properties
@@ -219,7 +220,10 @@ def _read(path: Path, key: tuple):
 
     chatter = io.StringIO()
     try:
-        with contextlib.redirect_stdout(chatter), contextlib.redirect_stderr(chatter):
+        # meshio's format probes overflow on text files (warnings, not errors): silenced
+        with contextlib.redirect_stdout(chatter), contextlib.redirect_stderr(chatter), \
+                warnings.catch_warnings(), np.errstate(all="ignore"):
+            warnings.simplefilter("ignore")
             return meshio.read(path, file_format="gmsh" if path.suffix.lower() == ".msh"
                                else None)
     except (Exception, SystemExit) as exc:  # ReadError, KeyError, ValueError, SystemExit...
@@ -322,7 +326,7 @@ def _geometry(c, case_dir: Path, key: tuple):
     """``(shape, volume, centre, rotation, inertia per unit mass (3,))`` of a body
     obstacle's section ``c`` (the module's closed forms)."""
     if c.type == "sphere":
-        r = c.radius
+        r = np.float64(c.radius)
         unit, triangles = icosphere(SPHERE_SUBDIVISIONS)
         return (Shape("sphere", r * unit, triangles, radius=r), 4.0 / 3.0 * np.pi * r**3,
                 np.asarray(c.center, dtype=float), np.eye(3), np.full(3, 0.4 * r * r))
@@ -334,7 +338,7 @@ def _geometry(c, case_dir: Path, key: tuple):
                 np.asarray(c.center, dtype=float), orientation_matrix(c.orientation),
                 moments)
     if c.type == "cylinder":
-        r, h = c.radius, c.height
+        r, h = np.float64(c.radius), np.float64(c.height)
         vertices, triangles = cylinder_surface(r, h)
         across = (3.0 * r * r + h * h) / 12.0
         return (Shape("cylinder", vertices, triangles, radius=r, height=h),
@@ -356,12 +360,12 @@ def _size_key(c) -> str:
 def body_obstacle(c, obstacle_id: int, case_dir: Path, rigid_index: int | None) -> Obstacle:
     """The :class:`Obstacle` of a body section ``c`` (``obstacles[obstacle_id]``)."""
     key = ("obstacles", obstacle_id)
-    shape, volume, centre, rotation, per_mass = _geometry(c, case_dir, key)
+    with np.errstate(over="ignore", invalid="ignore"):  # out of range: refused below
+        shape, volume, centre, rotation, per_mass = _geometry(c, case_dir, key)
     q = quaternion_from_matrix(rotation)
     hull = shape.vertices if shape.exact else contact_points(shape.vertices)
     if c.fixed:
-        body = RigidBody(np.inf, np.full(3, np.inf), centre, q, np.zeros(3), np.zeros(3),
-                         hull)
+        body = fixed_body(hull, centre, q)
         return Obstacle(obstacle_id, c.type, True, c.restitution, c.friction, body, shape,
                         volume, source=getattr(c, "file", ""))
     with np.errstate(over="ignore", invalid="ignore"):
