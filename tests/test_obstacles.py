@@ -457,3 +457,30 @@ def test_build_refuses_obstacles_without_the_rigid_stage(tmp_path):
     with pytest.raises(CaseError) as err:
         build_obstacles(config.obstacles, tmp_path, False)
     assert err.value.path == ("obstacles",)
+
+
+def test_balls_dropped_on_a_fixed_box_and_a_plane_obstacle_stay_on_them(tmp_path):
+    """The rigid stage's contact takes the fixed box as a body of infinite mass and the
+    plane obstacle as a ground plane: the balls bounce on them and never sink into them by
+    more than the contact's slop (1 mm)."""
+    case = tmp_path / "drop.yaml"
+    case.write_text(BASE.replace("origin: [0, 0, 0]", "origin: [10, 0, 0]")
+                    .replace("dt: 0.01, steps: 20, output_every: 5",
+                             "dt: 0.002, steps: 350, output_every: 5") + textwrap.dedent("""\
+          - {type: sphere, center: [0, 0, 1], radius: 0.1, density: 1000}
+          - {type: box, center: [0, 0, 0], size: [1, 1, 0.2], fixed: true}
+          - {type: sphere, center: [3, 0, 1], radius: 0.1, density: 1000}
+          - {type: plane, point: [0, 0, -1]}
+        """))
+    out = tmp_path / "out"
+    assert main(["run", str(case), "-o", str(out), "-q"]) == 0
+    lowest = np.full(2, np.inf)
+    for _, path in _frames(out / "drop.pvd"):
+        m = meshio.read(path)
+        ids, x = m.cell_data["fragment_id"][0], m.points + m.point_data["displacement"]
+        for k in (0, 1):
+            lowest[k] = min(lowest[k], x[np.unique(m.cells[0].data[ids == k])][:, 2].min())
+    assert lowest[0] > 0.1 - 1e-3 and lowest[1] > -1.0 - 1e-3
+    assert lowest[0] < 0.1 + 0.05 and lowest[1] < -1.0 + 0.05  # they reached them
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["fragments"]["bodies"][0]["position"][2] < 0.9  # no longer at the start
