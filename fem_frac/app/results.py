@@ -291,7 +291,12 @@ def _rigid_columns(world: World) -> dict:
     return {"rigid_bodies": len(world.rigid), "rigid_kinetic_energy": kinetic,
             "rigid_potential_energy": potential,
             "handed_off_energy": world.ledger.handed_off,
-            "vibration_energy_removed": world.ledger.vibration_removed}
+            "vibration_energy_removed": world.ledger.vibration_removed,
+            # the step's contact impulses (sums over the bodies of the sizes of their net
+            # impulses), between bodies and from planes and fixed obstacles
+            # (RigidFragment.contact_impulse)
+            "rigid_impulse_between_bodies": sum(f.contact_impulse[0] for f in world.rigid),
+            "rigid_impulse_from_obstacles": sum(f.contact_impulse[1] for f in world.rigid)}
 
 
 def summary(case, case_path, grid, world: World, tally) -> dict:

@@ -4,12 +4,14 @@
 reaching it within the step; impulses (:func:`resolve`); drift (torque-free free flight of
 ``motion.py`` with the new momenta); projection (a body left inside a plane is moved out
 along the normal, velocities kept, so no kinetic energy is added: no Baumgarte bias). A step
-with no contact is the exact parabola of ``free_flight``. Vertices approaching faster than
-``v_rest = 2 |g| dt`` (twice what gravity adds in a step) bounce: the step is then cut at
-their linearly predicted time of impact, so the rebound starts on the plane (bounce heights
-right to O(g dt^2), where bouncing at the step boundary is off by O(|v| dt) and lets
-micro-bounces pump energy). Slower vertices rest: e = 0 and the target ``v_n >= -gap / dt``
-(speculative contact), so a body settles exactly onto the plane, without jitter.
+with no contact is the exact parabola of ``free_flight``. Vertices whose rebound ``e v`` is
+faster than ``v_rest = 2 |g| dt`` (twice what gravity adds in a step) bounce
+(:func:`bouncing`): the step is then cut at their linearly predicted time of impact, so the
+rebound starts on the plane (bounce heights right to O(g dt^2), where bouncing at the step
+boundary is off by O(|v| dt) and lets micro-bounces pump energy). The others rest: e = 0 and
+the target ``v_n >= -gap / dt`` (speculative contact), so a body settles exactly onto the
+plane, without jitter; a hop shorter than two steps is not resolved (with ``v > v_rest``
+alone, a piece hopped every other step for ever).
 
 :func:`resolve` uses Poisson's restitution in two phases, not Gauss-Seidel aimed at Newton's
 ``v_n+ = -e v_n-``:
@@ -288,12 +290,29 @@ def poisson_impulses(a, b, target, friction, restitution, polish=False,
 
 
 def targets(gap, approach, restitution, dt: float, v_rest: float):
-    """``(target (c,), e (c,))`` of contact points: those approaching faster than ``v_rest``
-    bounce (target 0, their e), the others rest (e = 0) with the speculative target
+    """``(target (c,), e (c,))`` of contact points: those that bounce (:func:`bouncing`) get
+    target 0 and their e, the others rest (e = 0) with the speculative target
     ``v_n >= -gap / dt`` (a point may close its gap within the step, no more)."""
-    bouncing = approach > v_rest
-    target = np.where(bouncing, 0.0, -np.maximum(gap, 0.0) / dt)
-    return target, np.where(bouncing, restitution, 0.0)
+    bounce = bouncing(gap, approach, restitution, dt, v_rest)
+    target = np.where(bounce, 0.0, -np.maximum(gap, 0.0) / dt)
+    return target, np.where(bounce, restitution, 0.0)
+
+
+def bouncing(gap, approach, restitution, dt: float, v_rest: float) -> np.ndarray:
+    """(c,) the points that bounce: their rebound ``e v`` is faster than ``v_rest``, and they
+    touch (their gap closes within ``dt / 4`` at their approach ``v``).
+
+    Rebound: a hop of ``2 e v / g`` must last more than two steps (``v_rest = 2 g dt``) to be
+    resolved; shorter hops ended in a limit cycle, a face of a piece hopping every other step
+    with ``v* = 2 g dt / (1 - e)``, above the former threshold ``v > v_rest`` for any e > 0,
+    fed by the projection and the bounces from above the plane (the breaking beam's pieces
+    rocked so for ever). Such a point rests instead: its approach decays as ``e^k`` in the
+    exact motion, and the last hops are below the step. Touching: after the step is cut at
+    the first bounce's linearly predicted time of impact, that point's gap is the
+    prediction's error, at most ``g dt^2 / 2``, so it closes within
+    ``g dt^2 / (2 v_rest) = dt / 4``; a point farther away must not bounce now, from a
+    distance above the plane: it rests this step (inelastic) and lands."""
+    return (restitution * approach > v_rest) & (gap <= 0.25 * dt * approach)
 
 
 def resolve(body: RigidBody, contacts: Contacts, dt: float, v_rest: float) -> RigidBody:
@@ -334,7 +353,7 @@ def step(body: RigidBody, dt: float, gravity, planes) -> RigidBody:
     if len(contacts.gap) == 0:
         return project(free_flight(body, dt, g), planes)
     v_rest = 2.0 * float(np.linalg.norm(g)) * dt
-    fast = contacts.approach > v_rest
+    fast = contacts.restitution * contacts.approach > v_rest
     if not np.any(fast):
         # resting contact: kick, impulses, drift; the impulses cancel this step's gravity, so
         # a body at rest stays exactly at rest

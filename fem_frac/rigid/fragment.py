@@ -48,9 +48,9 @@ class RigidFragment:
     ``strain``: the piece's kinetic and strain energy in the finite elements at hand-off;
     ``resting``: steps it has rested on the ground (see fem_frac.rigid.stage); ``loads``:
     the surface loads that left the finite elements with it
-    (:class:`~fem_frac.rigid.loads.RigidLoad`); ``contact_impulse``: the impulses it
-    received in the last step from other bodies and from planes and fixed obstacles (sums
-    of the sizes of the contact points' impulses, :func:`~fem_frac.rigid.pairs.step_all`)."""
+    (:class:`~fem_frac.rigid.loads.RigidLoad`); ``contact_impulse``: the sizes of the net
+    contact impulses it received in the last step from other bodies and from planes and
+    fixed obstacles (:func:`~fem_frac.rigid.pairs.step_all`)."""
 
     body: RigidBody
     nodes: np.ndarray

@@ -185,11 +185,11 @@ def _system(bodies, movable, rows: Rows):
 
 
 def resolve_rows(bodies, movable, rows: Rows, dt: float, v_rest: float):
-    """``(bodies, impulses (c,))``: the bodies after the contact impulses of ``rows`` and the
-    size of each point's impulse (normal and friction). Rest and bounce as for planes
-    (:func:`~fem_frac.rigid.contact.targets`)."""
+    """``(bodies, impulses (c, 3))``: the bodies after the contact impulses of ``rows`` and
+    each point's impulse on its second body (world; minus that on the first). Rest and
+    bounce as for planes (:func:`~fem_frac.rigid.contact.targets`)."""
     if len(rows) == 0:
-        return list(bodies), np.zeros(0)
+        return list(bodies), np.zeros((0, 3))
     jac, wjt, b = _system(bodies, movable, rows)
     a = jac @ wjt
     target, e = targets(rows.gap, -b[0::3], rows.restitution, dt, v_rest)
@@ -198,7 +198,7 @@ def resolve_rows(bodies, movable, rows: Rows, dt: float, v_rest: float):
     out = [replace(body, momentum=body.momentum + delta[k, :3],
                    angular_momentum=body.angular_momentum + delta[k, 3:]) if movable[k]
            else body for k, body in enumerate(bodies)]
-    return out, np.linalg.norm(lam.reshape(-1, 3), axis=1)
+    return out, np.einsum("cij,ci->cj", rows.frame, lam.reshape(-1, 3))
 
 
 def separate(bodies, movable, rows: Rows) -> list:
@@ -225,14 +225,15 @@ def separate(bodies, movable, rows: Rows) -> list:
 
 
 def _per_body(rows: Rows, impulses: np.ndarray, obstacle: np.ndarray) -> np.ndarray:
-    """(n, 2): the sum of the impulses on each body from other bodies (column 0) and from
-    planes and fixed bodies (column 1); ``obstacle (n,)`` marks the fixed bodies."""
-    out = np.zeros((obstacle.size, 2))
-    for side, other in ((rows.first, rows.second), (rows.second, rows.first)):
+    """(n, 2): the size of the net impulse on each body from other bodies (column 0) and from
+    planes and fixed bodies (column 1); ``impulses (c, 3)`` of the points on their second
+    bodies; ``obstacle (n,)`` marks the fixed bodies."""
+    out = np.zeros((obstacle.size, 2, 3))
+    for side, other, sign in ((rows.first, rows.second, -1.0), (rows.second, rows.first, 1.0)):
         live = side >= 0
         column = np.where((other[live] >= 0) & ~obstacle[np.maximum(other[live], 0)], 0, 1)
-        np.add.at(out, (side[live], column), impulses[live])
-    return out
+        np.add.at(out, (side[live], column), sign * impulses[live])
+    return np.linalg.norm(out, axis=2)
 
 
 @dataclass(frozen=True, eq=False)
@@ -266,7 +267,7 @@ def step_island(island: Island, dt: float, gravity, planes):
                         island.touches)
     v_rest = 2.0 * float(np.linalg.norm(g)) * dt
     approach = -_system(kicked, movable, rows)[2][0::3] if len(rows) else np.zeros(0)
-    fast = approach > v_rest
+    fast = rows.restitution * approach > v_rest
     if not np.any(fast):
         # resting contact: kick, impulses, separation, drift
         hit, impulses = resolve_rows(kicked, movable, rows, dt, v_rest)
@@ -337,9 +338,9 @@ def step_all(bodies, asleep, moving, dt: float, gravity, planes, fixed=(),
     bodies: the rigid bodies; asleep (n,): not stepped unless a moving body reaches them;
     moving (n,): bodies that moved in the last step (those wake the sleepers they touch);
     planes; fixed: :class:`FixedBody` obstacles; law: e and mu between two bodies.
-    Returns ``(bodies, impulses (n, 2), woken (n,), pairs)``: the impulses each body received
-    in the step from other bodies and from planes or fixed bodies, the sleepers woken, and
-    the number of touching pairs.
+    Returns ``(bodies, impulses (n, 2), woken (n,), pairs)``: the size of the net impulse
+    each body received in the step from other bodies and from planes or fixed bodies, the
+    sleepers woken, and the number of touching pairs.
     """
     g = np.asarray(gravity, dtype=float)
     n = len(bodies)
@@ -352,6 +353,9 @@ def step_all(bodies, asleep, moving, dt: float, gravity, planes, fixed=(),
     woken = np.zeros(n, dtype=bool)
     for k in np.flatnonzero((labels < 0) & ~asleep):
         out[k] = step(bodies[k], dt, g, planes)
+        # what the planes gave: all but gravity (exactly 0 in free flight)
+        kicked = bodies[k].momentum + bodies[k].mass * dt * g
+        impulses[k, 1] = np.linalg.norm(out[k].momentum - kicked)
     for label in np.unique(labels[labels >= 0]):
         members = np.flatnonzero(labels == label)
         if np.all(asleep[members]):

@@ -123,9 +123,11 @@ class Ground(Section):
 
 class BodyContact(Section):
     """Contact between two rigid bodies: they bounce with ``restitution`` (0: no bounce, 1:
-    elastic) and slide with Coulomb ``friction``."""
+    elastic) and slide with Coulomb ``friction``. No bounce by default: pieces are born
+    touching along their crack, and what their faces did in the finite elements just before
+    (closing at a hinge) is no impact to bounce off."""
 
-    restitution: Annotated[float, Field(ge=0.0, le=1.0)] = 0.5
+    restitution: Annotated[float, Field(ge=0.0, le=1.0)] = 0.0
     friction: NonNegativeFloat = 0.5
 
 
