@@ -285,7 +285,8 @@ def _run(setup: Setup, case_path: Path, name: str, manifest: Manifest, status: R
         from ..rigid.stage import planes
 
         ground = write_ground(manifest, name, planes(case.fragments), setup.disc.mesh.points)
-    series = SeriesWriter(out_dir, name, manifest=manifest)
+    series = SeriesWriter(out_dir, name, manifest=manifest,
+                          compression=case.output.compression)
     shown = _obstacle_series(setup, manifest, name)
     world, tally, record = _march(setup, manifest, series, status, timer, log,
                                   () if shown is None else (shown,))
@@ -344,7 +345,8 @@ def _march(setup: Setup, manifest: Manifest, series: SeriesWriter, status: RunSt
     """Every step of the case with its output: the last world, the tally and the
     reference's recorder (``None`` when the case declares none that needs one)."""
     case, out_dir = setup.case, manifest.directory
-    cracks = CrackWriter(SeriesWriter(out_dir, f"{series.name}_crack", manifest=manifest)) \
+    cracks = CrackWriter(SeriesWriter(out_dir, f"{series.name}_crack", manifest=manifest,
+                                      compression=series.compression)) \
         if case.fracture is not None and case.output.crack_surface else None
     world, tally = start(setup, timer, log)
     status.tally = tally

@@ -27,6 +27,10 @@ class Output(Section):
     crack_surface: bool = Field(
         default=False, description="with fracture: also write the crack faces as a surface "
         "series <name>_crack.pvd (written, empty until the first crack, at every output step)")
+    compression: Literal["none", "zlib", "lzma"] = Field(
+        default="none", description="compression of the .vtu data arrays: none (fastest to "
+        "write), zlib (about half the size, about 6 times the writing time), lzma "
+        "(smallest, slowest); docs/performance.md, 'Output'")
 
     #: Longest ``name`` (bytes, UTF-8): the files add up to 17 characters to it.
     NAME_MAX_BYTES: ClassVar[int] = 128
