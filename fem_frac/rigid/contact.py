@@ -51,7 +51,7 @@ _TOLERANCE = 1e-13
 _ITERATIONS = 200
 # Sweeps between tries of the exact solution on the active set (:func:`_polish`), and its
 # slack: round-off of a least-squares solve, as a fraction of the velocities.
-_POLISH_EVERY = 10
+_POLISH_EVERY = 5
 _ROUND_OFF = 1e-12
 
 
@@ -331,7 +331,7 @@ def resolve(body: RigidBody, contacts: Contacts, dt: float, v_rest: float) -> Ri
     b = jac @ np.concatenate([body.momentum / body.mass, omega])
     a = jac @ inv_mass @ jac.T
     target, e = targets(contacts.gap, contacts.approach, contacts.restitution, dt, v_rest)
-    return _apply(body, jac, poisson_impulses(a, b, target, contacts.friction, e))
+    return _apply(body, jac, poisson_impulses(a, b, target, contacts.friction, e, polish=True))
 
 
 def project(body: RigidBody, planes, sweeps: int = 2) -> RigidBody:
