@@ -29,8 +29,9 @@ that. Newton's law at several vertices can gain energy. A guard scales down a re
 that would (only round-off with one e; mixed e, resting and bouncing vertices, need it), and
 a last inelastic pass stops vertices that another's rebound drives into the plane.
 
-Not handled: contact between bodies (fragments pass through each other), contact with the
-finite-element mesh, curved or finite obstacles (planes are infinite), rolling and spinning
+Contact between bodies (and with fixed obstacles) uses the same solver:
+:mod:`~fem_frac.rigid.pairs`. Not handled: contact with the finite-element mesh, rolling
+and spinning
 resistance, distinct static and kinetic friction, friction in the last inelastic pass.
 A body touches a plane only at its ``points``; for the vertices of a convex hull that is
 complete, since a convex body first meets a plane at a vertex.
