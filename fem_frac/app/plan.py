@@ -158,7 +158,8 @@ def _fragments(case: Case) -> Stage:
     f = case.fragments
     if f is not None and f.whole_body:
         return Stage("fragments", True, "the whole body is one rigid body from the start "
-                     "(exact mass properties; no finite-element solve)" + _ground(f))
+                     "(exact mass properties; no finite-element solve)"
+                     + _ground(f, case.obstacles))
     if case.fracture is None:
         return Stage("fragments", False, "not requested")
     text = ("connected components over shared faces after every insertion (fragment_id, "
@@ -168,15 +169,18 @@ def _fragments(case: Case) -> Stage:
     rule = {"all": "every free piece", "small": f"free pieces up to volume {f.max_volume}",
             "settled": f"free pieces once their vibration is below {f.vibration_tolerance:g} "
                        "of their rigid kinetic energy"}[f.become_rigid]
-    return Stage("fragments", True, text + f"{rule} becomes a rigid body" + _ground(f))
+    return Stage("fragments", True, text + f"{rule} becomes a rigid body"
+                 + _ground(f, case.obstacles))
 
 
-def _ground(f) -> str:
+def _ground(f, obstacles=()) -> str:
+    bodies = "" if not obstacles else \
+        f"; {len(obstacles)} obstacle(s) (fem-frac check lists them)"
     if not f.ground:
-        return "; no ground"
+        return ("; no ground" if not obstacles else "") + bodies
     return "; " + ", ".join(f"ground through {list(g.point)} normal {list(g.normal)} "
                             f"(restitution {g.restitution:g}, friction {g.friction:g})"
-                            for g in f.ground)
+                            for g in f.ground) + bodies
 
 
 def _cadence(analysis) -> str:
