@@ -128,6 +128,11 @@ class SortedKeys:
         self.order = np.argsort(self.keys, kind="stable")
         self._sorted = self.keys[self.order]
 
+    @property
+    def sorted(self) -> np.ndarray:
+        """The keys in ascending order (``keys[order]``)."""
+        return self._sorted
+
     def rows(self, wanted: np.ndarray) -> np.ndarray:
         """For each of ``wanted (k,)`` the lowest row of the table holding it; -1 where
         none does (callers decide whether a missing key is an error)."""

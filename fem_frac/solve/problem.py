@@ -11,8 +11,9 @@ import numpy as np
 
 from ..config import schema
 from ..errors import CaseError
-from ..fem import loads
+from ..fem import loads, surface
 from ..fem.space import Space
+from ..fem.surface import FaceLookup, Faces
 from ..mesh.mesh import exterior_facets, facet_keys
 from ..mesh.selection import box_facets, named_facets
 
@@ -68,10 +69,11 @@ class Problem:
         return self.constraints.values * self.factors(t)[self.constraints.curve]
 
 
-def outer_facets(mesh) -> np.ndarray:
+def outer_facets(mesh, lookup: FaceLookup | None = None) -> np.ndarray:
     """Exterior faces ``(k, 3)`` less the faces of cracks (group ``crack``): what the group
-    ``boundary`` and box selections choose from, so crack faces stay traction-free."""
-    exterior = exterior_facets(mesh.tets)
+    ``boundary`` and box selections choose from, so crack faces stay traction-free
+    (``lookup``: the mesh's faces, already sorted)."""
+    exterior = exterior_facets(mesh.tets) if lookup is None else lookup.exterior()
     crack = mesh.boundaries.get(CRACK)
     if crack is None or len(crack) == 0:
         return exterior
@@ -79,8 +81,10 @@ def outer_facets(mesh) -> np.ndarray:
     return exterior[~np.isin(keys, facet_keys(crack, mesh.n_points))]
 
 
-def _select(space: Space, bc, index: int, exterior: np.ndarray,
-            strict: bool = True) -> np.ndarray:
+def _select(space: Space, bc, index: int, exterior: np.ndarray, lookup: FaceLookup,
+            strict: bool = True) -> Faces | None:
+    """The faces a condition selects, with their nodes and quadrature (None: no faces, and
+    not ``strict``)."""
     mesh = space.mesh
     if bc.boundary is not None:
         try:
@@ -95,9 +99,9 @@ def _select(space: Space, bc, index: int, exterior: np.ndarray,
         what = "the box"
     if len(triples) == 0:
         if not strict:
-            return np.zeros(0, dtype=np.int64)
+            return None
         raise CaseError(key, f"{what} selects no boundary faces")
-    return space.facet_indices(triples)
+    return surface.faces_of(space, triples, lookup)
 
 
 def _label(bc, index: int) -> str:
@@ -126,20 +130,21 @@ def build_problem(
     analysis = analysis if analysis is not None else schema.StaticAnalysis()
     names, curves, curve_of = resolve_curves(_curve_keys(conditions, body_force),
                                              load_curves or {}, analysis)
-    exterior = outer_facets(space.mesh)
+    lookup = FaceLookup(space.mesh.tets, space.mesh.n_points)
+    exterior = outer_facets(space.mesh, lookup)
     forces = np.zeros((len(names), space.n_dofs))
     surface = {schema.Traction: np.zeros_like(forces), schema.Pressure: np.zeros_like(forces)}
     groups: dict[str, np.ndarray] = {}
     resultants: dict[str, tuple[int, np.ndarray]] = {}
     described, supports = [], []
     for i, bc in enumerate(conditions):
-        facets = _select(space, bc, i, exterior, strict)
+        facets = _select(space, bc, i, exterior, lookup, strict)
         label = _label(bc, i)
         timing = f", curve {names[curve_of[i]]}" if hasattr(bc, "curve") else ""
         if isinstance(bc, _LOADS):
             key = label if label not in resultants else f"boundary_conditions[{i}]"
             resultants[key] = (int(curve_of[i]), np.zeros(3))
-        if len(facets) == 0:  # (only when not strict)
+        if facets is None:  # (only when not strict)
             if not isinstance(bc, _LOADS):
                 groups[label] = np.zeros(0, dtype=np.int64)
             described.append(f"{bc.type} on {label} (no faces left)")
@@ -178,21 +183,21 @@ def _curve_keys(conditions: list, body_force) -> list[tuple]:
     return keys
 
 
-def _surface_force(space: Space, bc, facets: np.ndarray) -> np.ndarray:
+def _surface_force(space: Space, bc, facets: Faces) -> np.ndarray:
     """Nodal force ``(n_dofs,)`` of a traction or pressure at curve factor 1."""
     if isinstance(bc, schema.Traction):
-        return loads.surface_load(space, facets, traction=bc.traction)
-    return loads.surface_load(space, facets, pressure=bc.pressure)
+        return surface.face_load(space, facets, traction=bc.traction)
+    return surface.face_load(space, facets, pressure=bc.pressure)
 
 
-def _supported(space: Space, bc, index: int, facets: np.ndarray) -> tuple[np.ndarray, dict]:
+def _supported(space: Space, bc, index: int, facets: Faces) -> tuple[np.ndarray, dict]:
     """Scalar nodes of the faces and the prescribed value of each constrained component."""
-    nodes = loads.surface_nodes(space, facets)
+    nodes = surface.face_nodes(facets)
     if isinstance(bc, schema.Fixed):
         return nodes, {0: 0.0, 1: 0.0, 2: 0.0}
     if isinstance(bc, schema.Displacement):
         return nodes, {k: v for k, v in enumerate((bc.x, bc.y, bc.z)) if v is not None}
-    axis = loads.mean_normal_axis(space, facets)  # symmetry
+    axis = surface.normal_axis(facets)  # symmetry
     if axis is None:
         raise CaseError(
             ("boundary_conditions", index, "boundary"),
