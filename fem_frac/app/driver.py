@@ -102,6 +102,11 @@ def check_stages(case: Case) -> None:
     if not f.whole_body and case.fracture is None:
         raise CaseError(("fragments",), "fragments need a fracture section (pieces break "
                         "free) or whole_body: true")
+    if f.finite_element_contact and case.analysis.mass_kind != "lumped":
+        raise CaseError(("analysis", "mass"), "fragments.finite_element_contact exchanges "
+                        "impulses through the nodes' lumped masses: set analysis.mass: lumped "
+                        f"(the {case.analysis.integrator} integrator's mass is "
+                        f"{case.analysis.mass_kind})")
 
 
 def prepare(case: Case, case_dir: Path, timer: StageTimer, log: Log = quiet,
@@ -188,6 +193,10 @@ def stages(setup: Setup, timer: StageTimer, log: Log = quiet) -> list[Stage]:
         from ..rigid.stage import RigidStage
 
         out.append(RigidStage(case.fragments, timer, log, obstacles=bodies(setup.obstacles)))
+        if case.fragments.finite_element_contact:
+            from ..rigid.stage import ElementContactStage
+
+            out.append(ElementContactStage(case.fragments, bodies(setup.obstacles)))
     return out
 
 

@@ -296,7 +296,12 @@ def _rigid_columns(world: World) -> dict:
             # impulses), between bodies and from planes and fixed obstacles
             # (RigidFragment.contact_impulse)
             "rigid_impulse_between_bodies": sum(f.contact_impulse[0] for f in world.rigid),
-            "rigid_impulse_from_obstacles": sum(f.contact_impulse[1] for f in world.rigid)}
+            "rigid_impulse_from_obstacles": sum(f.contact_impulse[1] for f in world.rigid),
+            # contact with the finite elements (fragments.finite_element_contact): the
+            # kinetic energy its impulses gave the finite elements (in the ledger's balance)
+            # and the kinetic energy they removed from both sides, from t = 0
+            "contact_work": world.ledger.contact_work,
+            "contact_dissipated": world.ledger.contact_dissipated}
 
 
 def summary(case, case_path, grid, world: World, tally) -> dict:

@@ -22,7 +22,7 @@ potential energy are the world's (:meth:`~fem_frac.world.state.World.rigid_energ
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -32,12 +32,14 @@ from ..timing import StageTimer
 from ..world.stage import Step
 from ..world.state import Body, World, body_of
 from ..world.transfer import carry, rediscretize
+from . import deformable
 from . import loads as rigid_loads
 from .body import kinetic_energy
 from .contact import Plane
 from .fragment import RigidFragment, rigid_piece
 from .loads import piece_loads
 from .pairs import PairLaw, step_all
+from .surface import exterior
 
 # Steps at rest on the ground after which a rigid body sleeps (see RigidStage.move).
 SLEEP_STEPS = 20
@@ -237,3 +239,98 @@ class RigidStage:
         # the tractions and pressures on its faces go with it
         loads = piece_loads(d.problem, nodes, f.body_coords, f.body.orientation)
         return replace(f, loads=loads) if loads else f
+
+
+@dataclass(frozen=True)
+class ElementContactEvent:
+    """One step's exchange between the rigid bodies and the finite elements: ``contacts``
+    (points), the total impulse ``on_elements (3,)`` the finite elements received (their
+    constrained dofs included) and ``on_bodies (3,)`` the rigid bodies received (fixed ones
+    included): equal and opposite; ``work``: the kinetic energy it gave the finite
+    elements; ``rigid``: the rigid bodies' kinetic energy change; ``constrained``: the
+    change of the kinetic energy of the velocities it constrains (<= 0)."""
+
+    contacts: int = 0
+    on_elements: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    on_bodies: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    work: float = 0.0
+    rigid: float = 0.0
+    constrained: float = 0.0
+
+
+class ElementContactStage:
+    """Contact between the rigid bodies (fragments, moving and fixed obstacles) and the
+    finite elements, after the rigid bodies have moved (:mod:`~fem_frac.rigid.deformable`):
+    the finite elements' velocities and the rigid bodies' momenta change by equal and
+    opposite impulses; the finite-element ledger books the kinetic energy they gave as
+    ``contact_work``, both sides' loss as ``contact_dissipated``."""
+
+    name = "element contact"
+
+    def __init__(self, config: schema.Fragments, obstacles: tuple = ()):
+        self.fixed = tuple(o for o in obstacles if np.isinf(o.body.mass))
+        # moving obstacles: their own friction, by their place among the rigid bodies
+        self.friction = {o.rigid_index: o.friction for o in obstacles
+                         if o.rigid_index is not None}
+        self.default = config.body_contact.friction
+        self._mesh, self._exterior = None, None
+
+    def __call__(self, step: Step, world: World) -> tuple[World, ElementContactEvent | None]:
+        body = world.body
+        if step.initial or body is None or not (world.rigid or self.fixed):
+            return world, None
+        bodies = [f.body for f in world.rigid] + [o.body for o in self.fixed]
+        n = len(world.rigid)
+        friction = [self.friction.get(k, self.default) for k in range(n)] + \
+            [o.friction for o in self.fixed]
+        accel = np.zeros((len(bodies), 3))
+        accel[:n] = world.gravity
+        elements = self.elements(body)
+        dt = step.t - step.start.t
+        contacts = deformable.detect(elements, bodies, friction, accel, dt)
+        if len(contacts) == 0:
+            return world, ElementContactEvent()
+        ex = deformable.exchange(elements, bodies, contacts, accel, dt)
+        return self._apply(world, ex, n)
+
+    def elements(self, body: Body) -> deformable.Elements:
+        """The finite-element side of the body's state (exterior cached per mesh)."""
+        d, state = body.disc, body.state
+        if body.mesh is not self._mesh:
+            self._mesh = body.mesh
+            self._exterior = exterior(body.mesh.tets, body.mesh.n_points,
+                                      d.space.basis.element_dofs)
+        inverse = 1.0 / d.ops.mass.diagonal()
+        inverse[np.asarray(d.constrained.dofs)] = 0.0
+        x = d.space.node_points + state.u.reshape(-1, 3)
+        return deformable.Elements(x, state.v.reshape(-1, 3), state.a.reshape(-1, 3),
+                                   inverse.reshape(-1, 3), body.mesh.tets, self._exterior)
+
+    @staticmethod
+    def _apply(world: World, ex, n: int) -> tuple[World, ElementContactEvent]:
+        body = world.body
+        state = body.state
+        v = state.v.reshape(-1, 3).copy()
+        m = body.disc.ops.mass.diagonal().reshape(-1, 3)[ex.nodes]
+        before = v[ex.nodes]
+        v[ex.nodes] = before + ex.dv
+        work = 0.5 * float(np.sum(m * (v[ex.nodes] ** 2 - before ** 2)))
+        rigid, change = list(world.rigid), 0.0
+        for i, k in enumerate(ex.bodies):
+            if k >= n or not np.any(ex.rigid[i]):
+                continue  # a fixed obstacle takes its impulse without moving
+            f = rigid[k]
+            moved = replace(f.body, momentum=f.body.momentum + ex.rigid[i, :3],
+                            angular_momentum=f.body.angular_momentum + ex.rigid[i, 3:])
+            change += kinetic_energy(moved) - kinetic_energy(f.body)
+            rigid[k] = replace(f, body=moved, resting=0)
+        ledger = world.ledger
+        contact = ledger.contact_work + work
+        ledger = replace(ledger, kinetic=ledger.kinetic + work, contact_work=contact,
+                         contact_dissipated=ledger.contact_dissipated - work - change,
+                         scale=max(ledger.scale, abs(contact)))
+        event = ElementContactEvent(ex.contacts, ex.impulse.sum(axis=0),
+                                    ex.rigid[:, :3].sum(axis=0), work, change, ex.constrained)
+        # only the velocities change: the fields published for the state still hold
+        body = replace(body, state=replace(state, v=v.reshape(-1)))
+        return replace(world, body=body, rigid=tuple(rigid), ledger=ledger), event

@@ -3,7 +3,7 @@
 Trapezoidal work of every force, reactions included, makes the balance
 
     kinetic + elastic + plastic work + damping work + cohesive work - external work
-        = initial energy
+        - contact work = initial energy
 
 (the cohesive work is the trapezoidal work of the crack faces' tractions on their jumps,
 the energy they store plus the energy they dissipate)
@@ -45,14 +45,19 @@ class Ledger:
     cohesive_work: float = 0.0
     cohesive_stored: float = 0.0
     cohesive_dissipated: float = 0.0
+    # contact with rigid bodies (fem_frac.rigid.deformable): the work of their impulses on
+    # the finite elements (the kinetic energy each exchange gave them, from t = 0), and the
+    # kinetic energy the exchanges removed from both sides together
+    contact_work: float = 0.0
+    contact_dissipated: float = 0.0
 
     @property
     def error(self) -> float:
         """kinetic + elastic + plastic work + damping work + cohesive work + fracture +
-        handed off - external work - initial."""
+        handed off - external work - contact work - initial."""
         return (self.kinetic + self.elastic + self.plastic_work + self.damping_work
                 + self.cohesive_work + self.fracture + self.handed_off
-                - self.external_work - self.initial)
+                - self.external_work - self.contact_work - self.initial)
 
     @property
     def relative_error(self) -> float:
@@ -130,4 +135,5 @@ def account(ledger: Ledger, old: State, new: State, problem, law, ops: Operators
                   ledger.initial, scale, ledger.fracture, ledger.handed_off,
                   ledger.vibration_removed, cohesive,
                   faces.stored if faces is not None else 0.0,
-                  faces.dissipated if faces is not None else 0.0)
+                  faces.dissipated if faces is not None else 0.0,
+                  ledger.contact_work, ledger.contact_dissipated)

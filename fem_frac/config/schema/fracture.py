@@ -138,7 +138,9 @@ class Fragments(Section):
     its rigid kinetic energy); ``never`` keeps them deformable. ``whole_body`` makes the
     whole body one rigid body from the start (no finite elements: ``analysis`` gives the time
     steps and the initial velocity). ``gravity`` (default: ``body_force.gravity``) acts on
-    rigid bodies; ``ground`` planes stop them; ``body_contact``: between two of them."""
+    rigid bodies; ``ground`` planes stop them; ``body_contact``: between two of them;
+    ``finite_element_contact``: rigid bodies and the finite elements touch (its friction is
+    ``body_contact``'s for a fragment, an obstacle's own)."""
 
     become_rigid: Literal["all", "small", "settled", "never"] = "all"
     max_volume: PositiveFloat | None = None
@@ -149,6 +151,9 @@ class Fragments(Section):
     body_contact: BodyContact = BodyContact()
     contact_substeps: PositiveInt = Field(
         default=1, description="rigid-body steps per analysis step (finer contact resolution)")
+    finite_element_contact: bool = Field(
+        default=False, description="rigid bodies touch the finite elements (impulses through "
+        "the lumped mass: needs analysis.mass lumped)")
 
     @model_validator(mode="after")
     def _small(self):

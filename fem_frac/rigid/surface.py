@@ -1,0 +1,156 @@
+"""The geometry of contact between rigid bodies and the finite elements: the exterior of the
+deformed finite-element body, points located in its tets, closest points on its faces, and
+the half-spaces of a rigid body's convex hull. All vectorized (numpy, scipy's cKDTree).
+
+Used by :mod:`~fem_frac.rigid.deformable`, which finds the contacts and their impulses.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.spatial import cKDTree
+
+from ..mesh.mesh import TET_EDGES, edge_keys, exterior_facets
+from .body import RigidBody, rotation_matrix
+from .collide import hull
+
+# A point counts as inside a tet when its barycentric coordinates are all above this
+# (round-off of the coordinates of a point on a face shared by two tets).
+_INSIDE = -1e-12
+
+
+@dataclass(frozen=True, eq=False)
+class Exterior:
+    """The exterior of a mesh: ``faces (f, 3)`` the vertex triples of the faces held by one
+    tet (outward for positively oriented tets; crack faces included), ``nodes (s,)`` the
+    scalar nodes on them (their vertices and, for P2, the mid-edge nodes of their edges)."""
+
+    faces: np.ndarray
+    nodes: np.ndarray
+
+
+def exterior(tets: np.ndarray, n_points: int, element_dofs: np.ndarray) -> Exterior:
+    """The :class:`Exterior` of the mesh ``tets (e, 4)``; ``element_dofs (n_local, e)`` the
+    scalar nodes of every tet (vertices, then P2 mid-edge nodes in ``TET_EDGES`` order)."""
+    faces = exterior_facets(tets)
+    nodes = np.unique(faces)
+    if element_dofs.shape[0] == 10:
+        keys = edge_keys(faces[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2), n_points)
+        element = edge_keys(tets[:, TET_EDGES].reshape(-1, 2), n_points)
+        mid = element_dofs[4:].T.reshape(-1)
+        nodes = np.union1d(nodes, mid[np.isin(element, keys)])
+    return Exterior(faces, nodes)
+
+
+def hull_planes(body: RigidBody) -> tuple[np.ndarray, np.ndarray]:
+    """``(normals (F, 3), offsets (F,))``: the body's convex hull as the half-spaces
+    ``x . n <= offset`` in world coordinates (unit outer normals)."""
+    h = hull(body.points)
+    r = rotation_matrix(body.orientation)
+    offsets = (h.vertices @ h.normals.T).max(axis=0)
+    normals = h.normals @ r.T
+    return normals, offsets + normals @ body.position
+
+
+def pairs_within(a: np.ndarray, b: np.ndarray, radius) -> tuple[np.ndarray, np.ndarray]:
+    """``(i, j)``: every pair of points ``a[i]``, ``b[j]`` at most ``radius`` apart."""
+    if len(a) == 0 or len(b) == 0:
+        z = np.zeros(0, dtype=np.int64)
+        return z, z
+    pairs = cKDTree(a).sparse_distance_matrix(cKDTree(b), float(radius),
+                                              output_type="ndarray")
+    return pairs["i"].astype(np.int64), pairs["j"].astype(np.int64)
+
+
+def inside_tets(points: np.ndarray, x: np.ndarray, tets: np.ndarray) -> np.ndarray:
+    """``(p,)``: whether each of ``points (p, 3)`` lies in one of the tets ``(e, 4)`` with
+    vertices at ``x (n, 3)``. Candidates by a cKDTree on the centroids (every tet whose
+    centroid is within its largest centroid-to-vertex distance), then barycentric
+    coordinates."""
+    corners = x[tets]
+    centroid = corners.mean(axis=1)
+    reach = float(np.linalg.norm(corners - centroid[:, None], axis=2).max(initial=0.0))
+    i, e = pairs_within(points, centroid, reach)
+    found = np.zeros(len(points), dtype=bool)
+    if i.size == 0:
+        return found
+    edges = corners[e, 1:] - corners[e, :1]  # (m, 3 edges, 3)
+    solvable = np.abs(np.linalg.det(edges)) > 0.0
+    i, e, edges = i[solvable], e[solvable], edges[solvable]
+    local = np.linalg.solve(np.transpose(edges, (0, 2, 1)),
+                            (points[i] - corners[e, 0])[:, :, None])[:, :, 0]
+    bary = np.concatenate([1.0 - local.sum(axis=1, keepdims=True), local], axis=1)
+    found[i[np.all(bary >= _INSIDE, axis=1)]] = True
+    return found
+
+
+def closest_on_triangles(p: np.ndarray, a: np.ndarray, b: np.ndarray,
+                         c: np.ndarray) -> np.ndarray:
+    """``(m, 3)`` barycentric weights of the point of each triangle ``a, b, c (m, 3)``
+    closest to ``p (m, 3)`` (Ericson, Real-Time Collision Detection, 5.1.5: the Voronoi
+    regions of the corners, the edges and the face, vectorized)."""
+    ab, ac, ap, bp, cp = b - a, c - a, p - a, p - b, p - c
+
+    def dot(u, v):
+        return np.einsum("ij,ij->i", u, v)
+
+    d1, d2, d3, d4, d5, d6 = dot(ab, ap), dot(ac, ap), dot(ab, bp), dot(ac, bp), \
+        dot(ab, cp), dot(ac, cp)
+    va, vb, vc = d3 * d6 - d5 * d4, d5 * d2 - d1 * d6, d1 * d4 - d3 * d2
+    with np.errstate(divide="ignore", invalid="ignore"):
+        total = va + vb + vc
+        v, w = vb / total, vc / total
+        out = np.stack([1.0 - v - w, v, w], axis=1)
+        # the regions in the reverse of Ericson's order, so that the first of his wins
+        t = (d4 - d3) / ((d4 - d3) + (d5 - d6))
+        regions = [
+            ((va <= 0) & (d4 - d3 >= 0) & (d5 - d6 >= 0), [0 * t, 1 - t, t]),
+            ((vb <= 0) & (d2 >= 0) & (d6 <= 0), [1 - d2 / (d2 - d6), 0 * t, d2 / (d2 - d6)]),
+            ((d6 >= 0) & (d5 <= d6), [0 * t, 0 * t, 0 * t + 1]),
+            ((vc <= 0) & (d1 >= 0) & (d3 <= 0), [1 - d1 / (d1 - d3), d1 / (d1 - d3), 0 * t]),
+            ((d3 >= 0) & (d4 <= d3), [0 * t, 0 * t + 1, 0 * t]),
+            ((d1 <= 0) & (d2 <= 0), [0 * t + 1, 0 * t, 0 * t]),
+        ]
+        for mask, weights in regions:
+            out[mask] = np.stack(weights, axis=1)[mask]
+    return out
+
+
+def nearest_faces(points: np.ndarray, x: np.ndarray, faces: np.ndarray):
+    """The triangle of ``faces (f, 3)`` (vertices at ``x``) nearest to each of
+    ``points (p, 3)``: ``(face (p,), weights (p, 3), distance (p,))``, ``weights`` the
+    barycentric coordinates of its closest point. Exact: every triangle whose centroid lies
+    within (the distance to the nearest centroid + the largest centroid-to-corner distance)
+    is tried."""
+    corners = x[faces]
+    centroid = corners.mean(axis=1)
+    spread = float(np.linalg.norm(corners - centroid[:, None], axis=2).max(initial=0.0))
+    nearest = cKDTree(centroid).query(points)[0]
+    rows, face = pairs_within(points, centroid, float(nearest.max(initial=0.0)) + spread)
+    keep = (np.linalg.norm(points[rows] - centroid[face], axis=1)
+            <= nearest[rows] + spread * (1 + 1e-12))
+    rows, face = rows[keep], face[keep]
+    a, b, c = (corners[face, k] for k in range(3))
+    weights = closest_on_triangles(points[rows], a, b, c)
+    closest = weights[:, :1] * a + weights[:, 1:2] * b + weights[:, 2:] * c
+    distance = np.linalg.norm(points[rows] - closest, axis=1)
+    # the nearest face of each point: sort by point, then distance
+    order = np.lexsort((distance, rows))
+    first = order[np.flatnonzero(np.r_[True, rows[order][1:] != rows[order][:-1]])]
+    out = np.empty(len(points), dtype=np.int64)
+    out[rows[first]] = face[first]
+    w = np.zeros((len(points), 3))
+    w[rows[first]] = weights[first]
+    d = np.full(len(points), np.inf)
+    d[rows[first]] = distance[first]
+    return out, w, d
+
+
+def face_normals(x: np.ndarray, faces: np.ndarray) -> np.ndarray:
+    """``(f, 3)`` unit normals of the triangles (right-hand rule: outward for exterior
+    faces)."""
+    n = np.cross(x[faces[:, 1]] - x[faces[:, 0]], x[faces[:, 2]] - x[faces[:, 0]])
+    norm = np.linalg.norm(n, axis=1, keepdims=True)
+    return n / np.where(norm > 0, norm, 1.0)
