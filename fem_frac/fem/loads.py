@@ -1,4 +1,9 @@
-"""Load vectors: surface tractions, pressure and body forces, as ``(n_dofs,)`` arrays."""
+"""Load vectors: surface tractions, pressure and body forces, as ``(n_dofs,)`` arrays.
+
+The surface functions here take scikit-fem facet ids (``Space.facet_indices``) and build the
+mesh's global facet tables; supports and loads of a case come from the boundary triangles
+themselves (:mod:`fem_frac.fem.surface`), which is far cheaper on every new mesh.
+"""
 
 from __future__ import annotations
 
