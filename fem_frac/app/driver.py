@@ -107,6 +107,12 @@ def check_stages(case: Case) -> None:
                         "impulses through the nodes' lumped masses: set analysis.mass: lumped "
                         f"(the {case.analysis.integrator} integrator's mass is "
                         f"{case.analysis.mass_kind})")
+    if f.finite_element_contact and case.analysis.substeps:
+        raise CaseError(("analysis", "substeps"), "fragments.finite_element_contact acts "
+                        "between steps and predicts the finite elements' motion over the next "
+                        "one from v + dt a / 2, which central difference's substeps do not "
+                        "follow: take dt at most the stable step (fem-frac check prints it), "
+                        "or newmark with analysis.mass: lumped")
 
 
 def prepare(case: Case, case_dir: Path, timer: StageTimer, log: Log = quiet,

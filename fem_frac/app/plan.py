@@ -176,6 +176,8 @@ def _fragments(case: Case) -> Stage:
 def _ground(f, obstacles=()) -> str:
     bodies = "" if not obstacles else \
         f"; {len(obstacles)} obstacle(s) (fem-frac check lists them)"
+    if f.finite_element_contact:
+        bodies += "; rigid bodies touch the finite elements (impulses through the lumped mass)"
     if not f.ground:
         return ("; no ground" if not obstacles else "") + bodies
     return "; " + ", ".join(f"ground through {list(g.point)} normal {list(g.normal)} "

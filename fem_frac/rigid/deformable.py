@@ -283,19 +283,35 @@ def exchange(el: Elements, bodies, contacts: Contacts, accel, dt: float) -> Exch
         return Exchange(nodes, np.zeros((m, 3)), np.zeros((m, 3)), used,
                         np.zeros((len(used), 6)))
     accel = np.asarray(accel, dtype=float).reshape(-1, 3)
-    u = np.concatenate([(el.v[nodes] + 0.5 * dt * el.a[nodes]).ravel()]
-                       + [np.concatenate([bodies[b].momentum * inverse_mass(bodies[b])
-                                          + 0.5 * dt * accel[b],
-                                          inverse_inertia_world(bodies[b])
-                                          @ bodies[b].angular_momentum]) for b in used])
     jac, wjt, a = jac[live], wjt[:, live], a[np.ix_(live, live)]
     kept = contacts.subset(live[0::3])
-    b = jac @ u
+    now = jac @ _velocities(el, bodies, nodes, used, accel, 0.0)
+    b = jac @ _velocities(el, bodies, nodes, used, accel, dt)
     target = -np.maximum(kept.gap, 0.0) / dt
     zero = np.zeros(len(kept))
     lam = poisson_impulses(a, b, target, kept.friction, zero, polish=True)
+    # the guard: the step-end kinetic energy must not rise either (its change is
+    # lam.now + lam.A.lam / 2); where it would, the impulses are scaled down to where it
+    # does not (the constrained velocities' energy, convex in the scale, still does not)
+    alam = a @ lam
+    quadratic = float(lam @ alam)
+    if float(lam @ now) + 0.5 * quadratic > 0.0 and quadratic > 0.0:
+        lam = lam * min(max(-2.0 * float(lam @ now) / quadratic, 0.0), 1.0)
+        alam = a @ lam
     impulse = jac.T @ lam
     fe = impulse[: 3 * m].reshape(m, 3)
     return Exchange(nodes, fe, el.inverse_mass[nodes] * fe, used,
                     impulse[3 * m:].reshape(-1, 6),
-                    float(lam @ b + 0.5 * lam @ (a @ lam)), len(kept))
+                    float(lam @ b + 0.5 * lam @ alam), len(kept))
+
+
+def _velocities(el: Elements, bodies, nodes, used, accel, dt: float) -> np.ndarray:
+    """The velocities of the contacts' unknowns (the nodes' dofs, then each body's
+    ``(V, omega)``), advanced by half a step ``dt`` of their accelerations (the velocities
+    that move the positions over a step of central difference and of free flight)."""
+    parts = [(el.v[nodes] + 0.5 * dt * el.a[nodes]).ravel()]
+    for b in used:
+        body = bodies[b]
+        parts.append(np.concatenate([body.momentum * inverse_mass(body) + 0.5 * dt * accel[b],
+                                     inverse_inertia_world(body) @ body.angular_momentum]))
+    return np.concatenate(parts)
