@@ -196,12 +196,18 @@ def test_a_box_resting_on_the_beam_loads_it_with_its_weight(tmp_path):
 
 
 def test_contact_with_the_finite_elements_needs_the_lumped_mass(tmp_path, capsys):
-    """Newmark's consistent mass is refused at analysis.mass, located, exit 2."""
+    """Newmark's consistent mass is refused at analysis.mass, central difference's substeps
+    at analysis.substeps, located, exit 2."""
     path = tmp_path / "drop.yaml"
     path.write_text(DROP.replace("integrator: central_difference", "integrator: newmark"))
     assert main(["check", str(path)]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "analysis.mass" in err[0] and "lumped" in err[0], err
+    path.write_text(DROP.replace("integrator: central_difference",
+                                 "integrator: central_difference, substeps: true"))
+    assert main(["check", str(path)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "analysis.substeps" in err[0], err
     path.write_text(DROP.replace("integrator: central_difference",
                                  "integrator: newmark, mass: lumped"))
     assert main(["check", str(path)]) == 0

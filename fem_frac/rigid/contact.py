@@ -30,9 +30,9 @@ that would (only round-off with one e; mixed e, resting and bouncing vertices, n
 a last inelastic pass stops vertices that another's rebound drives into the plane.
 
 Contact between bodies (and with fixed obstacles) uses the same solver:
-:mod:`~fem_frac.rigid.pairs`. Not handled: contact with the finite-element mesh, rolling
-and spinning
-resistance, distinct static and kinetic friction, friction in the last inelastic pass.
+:mod:`~fem_frac.rigid.pairs`; with the finite elements: :mod:`~fem_frac.rigid.deformable`.
+Not handled: rolling and spinning resistance, distinct static and kinetic friction,
+friction in the last inelastic pass.
 A body touches a plane only at its ``points``; for the vertices of a convex hull that is
 complete, since a convex body first meets a plane at a vertex.
 """
