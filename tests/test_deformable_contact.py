@@ -16,8 +16,9 @@ from fem_frac.app.cli import main
 from fem_frac.app.driver import prepare, simulate
 from fem_frac.app.overlap import TOLERANCE, run_overlaps
 from fem_frac.config import load_case
-from fem_frac.rigid.body import make_body
-from fem_frac.rigid.deformable import Elements, detect
+from fem_frac.rigid.body import make_body, quaternion_from_matrix
+from fem_frac.rigid.deformable import Elements, detect, fragment_solid
+from fem_frac.rigid.fragment import RigidFragment, contact_points
 from fem_frac.rigid.stage import ElementContactEvent
 from fem_frac.rigid.surface import closest_on_triangles, exterior
 from fem_frac.timing import StageTimer
@@ -75,6 +76,38 @@ def test_the_speculative_margin_takes_what_the_next_step_closes():
     np.testing.assert_allclose(c.gap, 0.01, rtol=1e-12)
     el, cube = _block_and_cube(-0.01, velocity=(0.0, 0.0, -5.0))
     assert len(detect(el, [cube], [0.0], np.zeros((1, 3)), dt)) == 0
+
+
+def test_an_l_shaped_fragment_touches_where_it_is_not_where_its_hull_is():
+    """An L of unit cubes ([0, 2] x [0, 1] and [0, 1] x [1, 2], z in [0, 1]) and a cube of
+    side 0.2 of finite elements at [0.95, 1.15] x [1.05, 1.25] x [0.45, 0.65]: its four
+    corners at x = 0.95 lie in the L's arm, 0.05 from its face x = 1; the four at x = 1.15
+    lie in the notch, inside the L's hull but 0.05 outside the L. With the fragment's own
+    tets: the four in the arm, gap -0.05, normal +x, and none in the notch; the hull finds
+    all eight. Moved to (0.3, -0.2, 0.1) and turned 90 degrees about z, the same."""
+    grid = structured_box((2, 2, 1), (2.0, 2.0, 1.0))
+    centroid = grid.points[grid.tets].mean(axis=1)
+    tets = grid.tets[~((centroid[:, 0] > 1.0) & (centroid[:, 1] > 1.0))]
+    coords = grid.points
+    for turn, shift in ((np.eye(3), np.zeros(3)),
+                        (np.array([[0.0, -1, 0], [1, 0, 0], [0, 0, 1]]),
+                         np.array([0.3, -0.2, 0.1]))):
+        body = make_body(1.0, np.ones(3), contact_points(coords), shift,
+                         quaternion_from_matrix(turn))
+        piece = RigidFragment(body, coords, tets, coords, 0, 0.0)
+        cube = structured_box((1, 1, 1), (0.2, 0.2, 0.2))
+        n = cube.n_points
+        x = shift + (cube.points + [0.95, 1.05, 0.45]) @ turn.T
+        el = Elements(x, np.zeros((n, 3)), np.zeros((n, 3)), np.ones((n, 3)), cube.tets,
+                      exterior(cube.tets, n, cube.tets.T))
+        c = detect(el, [body], [0.0], np.zeros((1, 3)), 1e-3, [fragment_solid(piece)])
+        assert len(c) == 4
+        assert np.all(c.weights[:, 0] == 1.0)
+        local = (el.x[c.nodes[:, 0]] - shift) @ turn
+        np.testing.assert_allclose(local[:, 0], 0.95, atol=1e-12)
+        np.testing.assert_allclose(c.gap, -0.05, rtol=1e-9)
+        np.testing.assert_allclose(c.normal, np.tile(turn[:, 0], (4, 1)), atol=1e-12)
+        assert len(detect(el, [body], [0.0], np.zeros((1, 3)), 1e-3)) == 8
 
 
 def test_closest_points_on_triangles_in_every_region():

@@ -46,15 +46,24 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .body import RigidBody, inverse_inertia_world, inverse_mass, world_points
+from .body import (
+    RigidBody,
+    inverse_inertia_world,
+    inverse_mass,
+    rotation_matrix,
+    world_points,
+)
 from .collide import hull
 from .contact import poisson_impulses
 from .surface import (
     Exterior,
+    Solid,
     face_normals,
     hull_planes,
     inside_tets,
+    locate_in_solid,
     nearest_faces,
+    solid,
 )
 
 # Gaps below this fraction of a body's radius count as touching.
@@ -124,11 +133,11 @@ def _closing(gap, normal, dv, da, dt: float) -> np.ndarray:
             + 0.5 * dt * dt * np.einsum("ij,ij->i", da, normal))
 
 
-def _nodes_in_hull(el: Elements, k: int, body: RigidBody, friction: float,
-                   accel: np.ndarray, dt: float) -> tuple | None:
-    """The exterior nodes touching body ``k``'s hull or closing on it in the next step."""
+def _near_nodes(el: Elements, body: RigidBody, radius: float, accel: np.ndarray,
+                dt: float) -> np.ndarray:
+    """The exterior nodes within reach of body ``body`` (its bounding sphere of ``radius``
+    about the centre, grown by what the next step can move both sides)."""
     nodes = el.exterior.nodes
-    radius = hull(body.points).radius
     omega = inverse_inertia_world(body) @ body.angular_momentum
     reach = (dt * (np.abs(el.v[nodes]).sum(axis=1).max(initial=0.0)
                    + np.linalg.norm(body.momentum * inverse_mass(body))
@@ -136,15 +145,44 @@ def _nodes_in_hull(el: Elements, k: int, body: RigidBody, friction: float,
              + 0.5 * dt * dt * (np.abs(el.a[nodes]).sum(axis=1).max(initial=0.0)
                                 + np.linalg.norm(accel))
              + _SLOP * radius)
-    near = nodes[np.linalg.norm(el.x[nodes] - body.position, axis=1) <= radius + reach]
+    return nodes[np.linalg.norm(el.x[nodes] - body.position, axis=1) <= radius + reach]
+
+
+def _hull_gaps(x: np.ndarray, body: RigidBody) -> tuple[np.ndarray, np.ndarray]:
+    """``(gap, normal)`` of world points against the body's hull (module docstring)."""
+    normals, offsets = hull_planes(body)
+    distance = x @ normals.T - offsets
+    face = np.argmax(distance, axis=1)
+    return distance[np.arange(len(x)), face], normals[face]
+
+
+def _solid_gaps(x: np.ndarray, body: RigidBody, shape: Solid) -> tuple[np.ndarray, np.ndarray]:
+    """``(gap, normal)`` of world points against a fragment's own tets: minus the distance
+    to its nearest exterior face inside (normal: that face's, outward), the distance
+    outside (normal: from the closest point towards the point)."""
+    r = rotation_matrix(body.orientation)
+    local = (x - body.position) @ r
+    inside, face, weights, distance = locate_in_solid(local, shape)
+    closest = np.einsum("ij,ijk->ik", weights, shape.vertices[shape.faces[face]])
+    apart = (~inside) & (distance > 0.0)
+    normal = np.where(apart[:, None],
+                      (local - closest) / np.where(apart, distance, 1.0)[:, None],
+                      face_normals(shape.vertices, shape.faces)[face])
+    return np.where(inside, -distance, distance), normal @ r.T
+
+
+def _nodes_in_body(el: Elements, k: int, body: RigidBody, shape: Solid | None,
+                   friction: float, accel: np.ndarray, dt: float) -> tuple | None:
+    """The exterior nodes touching body ``k`` (its own tets when it has a ``shape``, else
+    its hull) or closing on it in the next step."""
+    radius = hull(body.points).radius
+    if shape is not None:
+        radius = max(radius, float(np.linalg.norm(shape.vertices, axis=1).max(initial=0.0)))
+    near = _near_nodes(el, body, radius, accel, dt)
     if near.size == 0:
         return None
-    normals, offsets = hull_planes(body)
-    distance = el.x[near] @ normals.T - offsets
-    face = np.argmax(distance, axis=1)
-    gap = distance[np.arange(near.size), face]
-    normal = normals[face]
     x = el.x[near]
+    gap, normal = _hull_gaps(x, body) if shape is None else _solid_gaps(x, body, shape)
     closing = _closing(gap, normal, el.v[near] - _rigid_motion(body, x),
                        el.a[near] - accel, dt)
     live = np.minimum(gap, closing) <= _SLOP * radius
@@ -159,10 +197,19 @@ def _nodes_in_hull(el: Elements, k: int, body: RigidBody, friction: float,
             np.full(m, friction))
 
 
-def _vertices_in_elements(el: Elements, bodies, friction, accel, dt: float) -> tuple | None:
-    """The hull vertices of the bodies inside the deformed elements, or closing on their
-    exterior in the next step."""
-    points = [world_points(b) for b in bodies]
+def _surface_points(body: RigidBody, shape: Solid | None) -> np.ndarray:
+    """World points of a body tested against the elements: a fragment's exterior
+    vertices, else its hull's."""
+    if shape is None:
+        return world_points(body)
+    return body.position + shape.vertices[shape.surface] @ rotation_matrix(body.orientation).T
+
+
+def _vertices_in_elements(el: Elements, bodies, shapes, friction, accel,
+                          dt: float) -> tuple | None:
+    """The surface (fragments) or hull vertices of the bodies inside the deformed
+    elements, or closing on their exterior in the next step."""
+    points = [_surface_points(b, s) for b, s in zip(bodies, shapes, strict=True)]
     owner = np.repeat(np.arange(len(bodies)), [len(p) for p in points])
     p = np.concatenate(points) if points else np.zeros((0, 3))
     xv = el.vertices
@@ -203,15 +250,25 @@ def _vertices_in_elements(el: Elements, bodies, friction, accel, dt: float) -> t
             np.asarray(friction, dtype=float)[owner[live]])
 
 
-def detect(el: Elements, bodies, friction, accel, dt: float) -> Contacts:
+def detect(el: Elements, bodies, friction, accel, dt: float, shapes=None) -> Contacts:
     """The contacts between the finite elements ``el`` and the rigid ``bodies`` (module
     docstring); ``friction (n,)``: mu of each body against the finite elements,
     ``accel (n, 3)``: each body's acceleration over the next step (gravity; zero when
-    fixed)."""
+    fixed); ``shapes (n,)``: a fragment's :class:`~fem_frac.rigid.surface.Solid`
+    (:func:`fragment_solid`), ``None`` for a body tested by its hull (all, when omitted)."""
     accel = np.asarray(accel, dtype=float).reshape(-1, 3)
-    parts = [_nodes_in_hull(el, k, b, friction[k], accel[k], dt) for k, b in enumerate(bodies)]
-    parts.append(_vertices_in_elements(el, bodies, friction, accel, dt))
+    shapes = [None] * len(bodies) if shapes is None else list(shapes)
+    parts = [_nodes_in_body(el, k, b, shapes[k], friction[k], accel[k], dt)
+             for k, b in enumerate(bodies)]
+    parts.append(_vertices_in_elements(el, bodies, shapes, friction, accel, dt))
     return _concatenate([part for part in parts if part is not None])
+
+
+def fragment_solid(fragment) -> Solid:
+    """The :class:`~fem_frac.rigid.surface.Solid` of a
+    :class:`~fem_frac.rigid.fragment.RigidFragment` (its tets in its body frame; built once
+    per piece)."""
+    return solid(fragment.body_coords, fragment.cells)
 
 
 def frames(normals: np.ndarray) -> np.ndarray:

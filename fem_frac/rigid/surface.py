@@ -1,18 +1,21 @@
 """The geometry of contact between rigid bodies and the finite elements: the exterior of the
-deformed finite-element body, points located in its tets, closest points on its faces, and
-the half-spaces of a rigid body's convex hull. All vectorized (numpy, scipy's cKDTree).
+deformed finite-element body, points located in its tets, closest points on its faces, the
+half-spaces of a rigid body's convex hull, and a rigid fragment's own tets and surface
+(:class:`Solid`: non-convex pieces touch where they are, not where their hull is). All
+vectorized (numpy, scipy's cKDTree).
 
 Used by :mod:`~fem_frac.rigid.deformable`, which finds the contacts and their impulses.
 """
 
 from __future__ import annotations
 
+import weakref
 from dataclasses import dataclass
 
 import numpy as np
 from scipy.spatial import cKDTree
 
-from ..mesh.mesh import TET_EDGES, edge_keys, exterior_facets
+from ..mesh.mesh import TET_EDGES, TET_FACES, edge_keys, exterior_face_rows, exterior_facets
 from .body import RigidBody, rotation_matrix
 from .collide import hull
 
@@ -42,6 +45,53 @@ def exterior(tets: np.ndarray, n_points: int, element_dofs: np.ndarray) -> Exter
         mid = element_dofs[4:].T.reshape(-1)
         nodes = np.union1d(nodes, mid[np.isin(element, keys)])
     return Exterior(faces, nodes)
+
+
+@dataclass(frozen=True, eq=False)
+class Solid:
+    """A rigid fragment's own shape in its body frame: ``vertices (n, 3)``, ``tets (e, 4)``,
+    ``faces (f, 3)`` its exterior (the faces held by one of its tets, crack faces included),
+    oriented outward, and ``surface (s,)`` the vertices on them."""
+
+    vertices: np.ndarray
+    tets: np.ndarray
+    faces: np.ndarray
+    surface: np.ndarray
+
+
+_SOLIDS: dict[int, Solid] = {}
+
+
+def solid(body_coords: np.ndarray, cells: np.ndarray) -> Solid:
+    """The :class:`Solid` of a fragment's nodes ``body_coords (k, 3)`` (body frame) and
+    ``cells (e, 4 | 10)`` (VTK order: the four vertices first); kept while ``body_coords``
+    lives (a fragment's arrays are shared by all its states, so this runs once per piece).
+    The faces are turned outward by the tet that holds them, whatever the tets' sign."""
+    key = id(body_coords)
+    found = _SOLIDS.get(key)
+    if found is not None:
+        return found
+    tets = np.asarray(cells)[:, :4].astype(np.int64)
+    x = np.asarray(body_coords, dtype=float)
+    rows = np.flatnonzero(exterior_face_rows(tets, len(x)))
+    faces = tets[:, TET_FACES].reshape(-1, 3)[rows]
+    corner = x[faces]
+    normal = np.cross(corner[:, 1] - corner[:, 0], corner[:, 2] - corner[:, 0])
+    inward = np.einsum("ij,ij->i", normal,
+                       corner.mean(axis=1) - x[tets[rows // 4]].mean(axis=1)) < 0.0
+    faces[inward] = faces[inward][:, [0, 2, 1]]
+    found = _SOLIDS[key] = Solid(x[: int(tets.max()) + 1], tets, faces, np.unique(faces))
+    weakref.finalize(body_coords, _SOLIDS.pop, key, None)
+    return found
+
+
+def locate_in_solid(points: np.ndarray, shape: Solid):
+    """Points ``(p, 3)`` (body frame) against a :class:`Solid`: ``(inside (p,), face (p,),
+    weights (p, 3), distance (p,))``, inside its tets or not, the nearest exterior face,
+    the barycentric weights of its closest point and the distance to it."""
+    inside = inside_tets(points, shape.vertices, shape.tets)
+    face, weights, distance = nearest_faces(points, shape.vertices, shape.faces)
+    return inside, face, weights, distance
 
 
 def hull_planes(body: RigidBody) -> tuple[np.ndarray, np.ndarray]:
