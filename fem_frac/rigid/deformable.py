@@ -9,7 +9,11 @@ and every rigid body (fragments, moving and fixed obstacles), both ways:
   positions ``X + u`` against the half-spaces of a body's convex hull (world coordinates);
   the gap is the largest signed distance to the hull's face planes (the depth of the least
   penetrated face inside, a lower bound of the distance outside), the normal that face's;
-- **hull vertices in elements**: the vertices of a body's hull located in the deformed tets
+  for a fragment given its own shape (:func:`fragment_solid`), the nodes taken into its body
+  frame and located in its tets instead: the gap minus the distance to its nearest exterior
+  face inside (normal: that face's), the distance outside (normal: from the closest point);
+- **hull vertices in elements**: the vertices of a body's hull (of a fragment given its
+  shape: its exterior's vertices) located in the deformed tets
   (cKDTree on the centroids, barycentric coordinates); the gap is the distance to the
   nearest exterior face (negative inside), the normal that face's (outside: the direction
   to its closest point), and the contact acts on the face's three vertices with the
