@@ -82,6 +82,16 @@ def piece_loads(problem, nodes: np.ndarray, body_coords: np.ndarray,
     return tuple(out)
 
 
+def acceleration(body: RigidBody, loads: tuple[RigidLoad, ...], t: float) -> np.ndarray:
+    """``(3,)``: the acceleration of the centre of ``body`` its loads give at time ``t`` (at
+    its orientation now; gravity not included)."""
+    if not loads:
+        return np.zeros(3)
+    r = rotation_matrix(body.orientation)
+    force = sum(float(load.factor(t)) * load.resultant(r)[0] for load in loads)
+    return np.asarray(force, dtype=float) / body.mass
+
+
 def kick(body: RigidBody, loads: tuple[RigidLoad, ...], t: float, dt: float) -> RigidBody:
     """``body`` after the impulse ``dt`` times its loads at time ``t`` (at its orientation
     now)."""

@@ -283,11 +283,19 @@ class ElementContactStage:
         n = len(world.rigid)
         friction = [self.friction.get(k, self.default) for k in range(n)] + \
             [o.friction for o in self.fixed]
-        accel = np.zeros((len(bodies), 3))
-        accel[:n] = world.gravity
-        elements = self.elements(body)
         dt = step.t - step.start.t
-        contacts = deformable.detect(elements, bodies, friction, accel, dt)
+        # each body's acceleration over the next step: gravity and the loads that left with
+        # it (their mean over the step), as its motion will take them
+        accel = np.zeros((len(bodies), 3))
+        accel[:n] = world.gravity + np.array(
+            [0.5 * (rigid_loads.acceleration(f.body, f.loads, step.t)
+                    + rigid_loads.acceleration(f.body, f.loads, step.t + dt))
+             for f in world.rigid]).reshape(-1, 3)
+        # fragments touch by their own tets, moving obstacles and fixed ones by their hulls
+        shapes = [None if k in self.friction else deformable.fragment_solid(f)
+                  for k, f in enumerate(world.rigid)] + [None] * len(self.fixed)
+        elements = self.elements(body)
+        contacts = deformable.detect(elements, bodies, friction, accel, dt, shapes)
         if len(contacts) == 0:
             return world, ElementContactEvent()
         ex = deformable.exchange(elements, bodies, contacts, accel, dt)
