@@ -94,3 +94,48 @@ def test_the_series_named_in_the_summary_is_read(tmp_path):
     (tmp_path / "out" / "summary.json").write_text(json.dumps(
         {"output": {"pvd": str(tmp_path / "out" / "r.pvd")}}))
     assert len(run_overlaps(tmp_path / "out")) == 1
+
+
+def write_fixed(directory, solid_bounds, plane_z=None):
+    """``r_obstacles.pvd``: one frame holding a fixed box obstacle (a closed triangle
+    surface, obstacle 0) and, when asked, a plane z = ``plane_z`` drawn as an open square
+    (obstacle 1), as the run writes them."""
+    import pyvista as pv
+
+    box_surface = pv.Box(bounds=solid_bounds).triangulate()
+    # its corners exactly the bounds (pyvista's points are single precision)
+    lo, hi = np.array(solid_bounds[0::2], float), np.array(solid_bounds[1::2], float)
+    corners = np.asarray(box_surface.points, dtype=float)
+    points = [np.where(np.abs(corners - lo) < np.abs(corners - hi), lo, hi)]
+    triangles = [np.asarray(box_surface.faces).reshape(-1, 4)[:, 1:]]
+    ids = [np.zeros(len(triangles[0]), dtype=np.int32)]
+    if plane_z is not None:
+        square = np.array([[-5, -5, plane_z], [5, -5, plane_z], [5, 5, plane_z],
+                           [-5, 5, plane_z]], float)
+        triangles.append(np.array([[0, 1, 2], [0, 2, 3]]) + len(points[0]))
+        points.append(square)
+        ids.append(np.ones(2, dtype=np.int32))
+    ids = np.concatenate(ids)
+    normals = np.tile([0.0, 0.0, 1.0], (len(ids), 1))
+    meshio.write(directory / "r_obstacles_000000.vtu", meshio.Mesh(
+        np.concatenate(points), [("triangle", np.concatenate(triangles))],
+        cell_data={"obstacle_id": [ids], "normal": [normals]}))
+    (directory / "r_obstacles.pvd").write_text(
+        '<?xml version="1.0"?>\n<VTKFile type="Collection" version="0.1">\n<Collection>\n'
+        '<DataSet timestep="0" part="0" file="r_obstacles_000000.vtu"/>\n'
+        "</Collection>\n</VTKFile>\n")
+
+
+def test_fixed_obstacles_count_as_solids_and_planes(tmp_path):
+    """A fixed 1 x 0.4 x 0.4 box obstacle whose end reaches 0.05 into a unit cube: depth
+    0.05 over the smaller size (the obstacle's 0.16^(1/3)); an obstacle plane z = 0.02
+    drawn as an open square: the cube's bottom 0.02 below it."""
+    write_run(tmp_path / "out", [([box([0, 0, 0], [1, 1, 1])], 0.0)])
+    write_fixed(tmp_path / "out", (0.95, 1.95, 0.3, 0.7, 0.3, 0.7))
+    (o,) = run_overlaps(tmp_path / "out")
+    assert o.depth == pytest.approx(0.05, rel=1e-9) and o.pair == ("0", "obstacle 0")
+    assert o.fraction == pytest.approx(0.05 / 0.16 ** (1 / 3), rel=1e-9)
+    write_run(tmp_path / "b", [([box([0, 0, 0], [1, 1, 1])], 0.0)])
+    write_fixed(tmp_path / "b", (3, 4, 3, 4, 3, 4), plane_z=0.02)
+    (o,) = run_overlaps(tmp_path / "b")
+    assert o.depth == pytest.approx(0.02, rel=1e-9) and o.pair == ("0", "ground 0")

@@ -5,6 +5,10 @@ pieces of the finite-element part and the rigid fragments (``rigid/output.py``).
 is read as the solver wrote it, every point moved by its ``displacement``; the ground
 planes come from ``<name>_ground.vtu``.
 
+The fixed obstacles of ``<name>_obstacles.pvd`` count too: a closed surface as a solid
+(points of a body inside it, by ``select_interior_points``, and its points inside a body),
+an open square as a plane.
+
 The measure, for each pair of bodies whose bounding boxes overlap: the largest distance
 from a point of one body's surface that lies inside the other body (in one of its cells)
 to that other body's surface, both ways; for a plane, the largest depth of a body's point
@@ -47,28 +51,62 @@ class Overlap:
     fraction: float
 
 
-def series_files(directory: Path) -> tuple[list[tuple[float, Path]], Path | None]:
-    """``([(time, .vtu)], ground .vtu or None)`` of the run in ``directory``."""
+def _frames(pvd: Path) -> list[tuple[float, Path]]:
+    text = pvd.read_text()
+    return [(float(t), pvd.parent / f) for t, f in
+            re.findall(r'<DataSet[^>]*timestep="([^"]+)"[^>]*file="([^"]+)"', text)]
+
+
+def series_files(directory: Path) -> tuple[list[tuple[float, Path]], Path | None,
+                                           Path | None]:
+    """``([(time, .vtu)], ground .vtu or None, fixed obstacles .vtu or None)`` of the run in
+    ``directory`` (the fixed obstacles never move: their first frame)."""
     directory = Path(directory)
-    pvd = ground = None
+    pvd = ground = fixed = None
     summary = directory / "summary.json"
     if summary.is_file():
         output = json.loads(summary.read_text()).get("output") or {}
         pvd = Path(output["pvd"]) if "pvd" in output else None
         ground = Path(output["ground"]) if "ground" in output else None
+        fixed = Path(output["obstacles"]) if "obstacles" in output else None
     if pvd is None or not pvd.is_file():
-        found = [p for p in sorted(directory.glob("*.pvd")) if not p.stem.endswith("_crack")]
+        found = [p for p in sorted(directory.glob("*.pvd"))
+                 if not p.stem.endswith(("_crack", "_obstacles"))]
         if not found:
             raise OverlapError(f"{directory}: no .pvd series")
         pvd = found[0]
         grounds = sorted(directory.glob(f"{pvd.stem}_ground.vtu"))
         ground = grounds[0] if grounds else None
-    text = pvd.read_text()
-    frames = [(float(t), pvd.parent / f) for t, f in
-              re.findall(r'<DataSet[^>]*timestep="([^"]+)"[^>]*file="([^"]+)"', text)]
+        named = directory / f"{pvd.stem}_obstacles.pvd"
+        fixed = named if named.is_file() else None
+    frames = _frames(pvd)
     if not frames:
         raise OverlapError(f"{pvd}: no frames")
-    return frames, ground if ground is not None and ground.is_file() else None
+    fixed_frames = _frames(fixed) if fixed is not None and fixed.is_file() else []
+    return (frames, ground if ground is not None and ground.is_file() else None,
+            fixed_frames[0][1] if fixed_frames else None)
+
+
+def fixed_obstacles(path: Path | None) -> tuple[list, list[tuple[np.ndarray, np.ndarray]]]:
+    """``([(id, closed surface)], [(point, normal)])`` of the fixed obstacles' file: the
+    closed surfaces of solid obstacles, and the planes (drawn as open squares)."""
+    if path is None:
+        return [], []
+    import pyvista as pv
+
+    grid = pv.read(path)
+    ids = np.asarray(grid.cell_data["obstacle_id"])
+    normals = np.asarray(grid.cell_data["normal"], dtype=float).reshape(-1, 3)
+    solids, flat = [], []
+    for k in np.unique(ids):
+        cells = np.flatnonzero(ids == k)
+        surface = grid.extract_cells(cells).extract_surface(algorithm=SURFACE)
+        if surface.n_open_edges == 0:
+            solids.append((f"obstacle {k}", surface))
+        else:
+            corner = np.asarray(surface.points, dtype=float)[0]
+            flat.append((corner, normals[cells[0]] / np.linalg.norm(normals[cells[0]])))
+    return solids, flat
 
 
 def planes(ground: Path | None) -> list[tuple[np.ndarray, np.ndarray]]:
@@ -124,9 +162,10 @@ def _boxes_meet(a, b) -> bool:
     return bool(np.all(lo <= hi))
 
 
-def frame_overlap(time: float, path: Path,
-                  ground: list[tuple[np.ndarray, np.ndarray]]) -> Overlap:
-    """The deepest overlap between the bodies of one frame, and of each with the planes."""
+def frame_overlap(time: float, path: Path, ground: list[tuple[np.ndarray, np.ndarray]],
+                  solids: list = ()) -> Overlap:
+    """The deepest overlap between the bodies of one frame, and of each with the planes and
+    the fixed ``solids`` (``[(name, closed surface)]``)."""
     bodies = _bodies(path)
     sizes = {k: _size(b) for k, b in bodies.items()}
     best = Overlap(time, 0.0, ("", ""), 0.0)
@@ -145,14 +184,48 @@ def frame_overlap(time: float, path: Path,
                                  initial=0.0))
             if depth > best.depth:
                 best = Overlap(time, depth, (str(ka), f"ground {j}"), depth / sizes[ka])
+        for name, surface in solids:
+            if not _boxes_meet(bodies[ka], surface):
+                continue
+            depth = _depth_in_closed(bodies[ka], surface)
+            scale = min(sizes[ka], _closed_volume(surface) ** (1.0 / 3.0))
+            if depth > best.depth:
+                best = Overlap(time, depth, (str(ka), name), depth / scale)
     return best
 
 
 def run_overlaps(directory: Path) -> list[Overlap]:
     """The deepest overlap of every frame of the run in ``directory``."""
-    frames, ground = series_files(directory)
-    surfaces = planes(ground)
-    return [frame_overlap(t, path, surfaces) for t, path in frames]
+    frames, ground, fixed = series_files(directory)
+    solids, flat = fixed_obstacles(fixed)
+    surfaces = planes(ground) + flat
+    return [frame_overlap(t, path, surfaces, solids) for t, path in frames]
+
+
+def _depth_in_closed(body, surface) -> float:
+    """The largest distance to the closed ``surface`` of a surface point of ``body``
+    inside it, and of a point of ``surface`` inside ``body``."""
+    import pyvista as pv
+
+    points = pv.PolyData(np.asarray(body.extract_surface(algorithm=SURFACE).points))
+    inside = np.asarray(points.select_interior_points(surface, check_surface=False)
+                        ["selected_points"], dtype=bool)
+    depth = 0.0
+    if inside.any():
+        probe = pv.PolyData(np.asarray(points.points)[inside])
+        depth = float(np.max(np.abs(probe.compute_implicit_distance(surface)
+                                    ["implicit_distance"])))
+    within = np.asarray(body.find_containing_cell(surface.points)) >= 0
+    if within.any():
+        probe = pv.PolyData(np.asarray(surface.points)[within])
+        outer = body.extract_surface(algorithm=SURFACE)
+        depth = max(depth, float(np.max(np.abs(probe.compute_implicit_distance(outer)
+                                                ["implicit_distance"]))))
+    return depth
+
+
+def _closed_volume(surface) -> float:
+    return abs(float(surface.volume))
 
 
 def report(overlaps: list[Overlap]) -> str:
