@@ -294,3 +294,26 @@ def test_one_body_on_planes_takes_the_single_body_step():
         np.testing.assert_array_equal(both.position, alone.position)
         np.testing.assert_array_equal(both.momentum, alone.momentum)
         body = alone
+
+
+def test_boxes_resting_face_on_face_a_nanometre_apart_touch_along_the_face_normal():
+    """Two 0.1 x 0.2 x 0.1 boxes stacked face on face as a resting wall left them after a
+    step: centres 0.1 - 1.18e-9 apart in z, turned by at most 6.8e-8 rad. coal's normal for
+    this pair is 70 deg off (0.84, 0.42, 0.34); along it the support separation is -0.17 m,
+    which once closed the gap by throwing the boxes apart. The face normal must win: the gap
+    is the face overlap -1.18e-9 up to the turn (at most 6.8e-8 rad x 0.122 m = 8.3e-9 m at
+    a corner), the normal +z to the same angle."""
+    pts = np.array([[x, y, z] for x in (-0.05, 0.05) for y in (-0.1, 0.1)
+                    for z in (-0.05, 0.05)])
+    a = make_body(4.0, [1.0, 1.0, 1.0], pts,
+                  position=[0.04999999864014015, -0.09999999994715401, 0.05000000125416784],
+                  orientation=[1.0, 1.6765459734231217e-10, -1.2206369319738699e-08,
+                               -6.9611457704730696e-10])
+    b = make_body(4.0, [1.0, 1.0, 1.0], pts,
+                  position=[0.04999998692426712, -0.10000000047617064, 0.15000000007264763],
+                  orientation=[0.99999999999999778, 6.6674025911730535e-09,
+                               -6.7896553723816926e-08, 6.8320480089108734e-09])
+    t = touching(a, b, 3.1768217471213736e-08)
+    assert t is not None
+    assert abs(t.gap + 1.18e-9) <= 8.3e-9 + 1e-10
+    assert t.normal @ UP >= np.cos(1e-6)
