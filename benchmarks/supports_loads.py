@@ -1,9 +1,9 @@
 """Cost of the supports and loads (the ``loads`` stage) at ~10k and ~100k tets, P1 and P2,
 and in a whole fracture run, where they are rebuilt on every insertion batch.
 
-    python benchmarks/setup.py                           # both parts, 3 repeats (min-max)
-    python benchmarks/setup.py --tets 10000 --orders 1 --no-case
-    PYTHONPATH=/path/to/other/checkout python benchmarks/setup.py   # another version
+    python benchmarks/supports_loads.py                           # both parts, 3 repeats (min-max)
+    python benchmarks/supports_loads.py --tets 10000 --orders 1 --no-case
+    PYTHONPATH=/path/to/other/checkout python benchmarks/supports_loads.py   # another version
 
 Part 1: a 4 x 1 x 1 box meshed by gmsh (as benchmarks/pipeline.py), with a fixed end
 (``xmin``), a symmetry plane (``ymin``), a traction on ``xmax`` and a pressure on ``zmax``.
