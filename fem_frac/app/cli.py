@@ -117,6 +117,11 @@ def _study_parser(sub) -> None:
     study.add_argument("--workers", type=int, metavar="N",
                        help="runs in parallel (default: workers of the study file, else the "
                        "number of cores)")
+    study.add_argument("--scheduler", metavar="ADDRESS",
+                       help="run on a Dask distributed cluster: the scheduler's address "
+                       "(tcp://HOST:PORT), or 'local' for a local cluster of --workers "
+                       "processes; workers need fem-frac installed, no shared filesystem "
+                       "(pip install 'fem-frac[cluster]'; docs/studies.md, On a cluster)")
     study.add_argument("-q", "--quiet", action="store_true", help="print nothing but errors")
 
 
@@ -341,12 +346,32 @@ def _check_output_directory(case, args, out_dir: Path, name: str) -> None:
         raise
 
 
+def _study_options(args) -> str | None:
+    """Why the options of ``study`` cannot be taken (``None`` when they can)."""
+    if args.workers is not None and args.workers < 1:
+        return f"--workers {args.workers}: must be >= 1"
+    if args.scheduler is None:
+        return None
+    if args.workers is not None and args.scheduler != "local":
+        return (f"--workers {args.workers}: the runs in parallel on a cluster are its "
+                "workers' threads (start its workers with --nthreads 1); --workers goes with "
+                "--scheduler local or with no --scheduler")
+    from .study.cluster import require_distributed
+
+    try:
+        require_distributed()
+    except FemFracError as exc:
+        return str(exc)
+    return None
+
+
 def _study(args) -> int:
     from ..config import CaseErrors
     from .study import StudyErrors, failure_line, load_study, run_study, write_outputs
 
-    if args.workers is not None and args.workers < 1:
-        print(f"error: --workers {args.workers}: must be >= 1", file=sys.stderr)
+    problem = _study_options(args)
+    if problem is not None:
+        print(f"error: {problem}", file=sys.stderr)
         return 2
     log = _log(args.quiet)
     try:
@@ -361,7 +386,7 @@ def _study(args) -> int:
     out_dir = Path(args.output) if args.output else Path("out") / study.name
     log(f"study      {args.study}: {len(study.runs)} runs of {study.case_path} -> {out_dir}")
     try:
-        results = run_study(study, out_dir, args.workers, log)
+        results = run_study(study, out_dir, args.workers, log, args.scheduler)
         outcome = write_outputs(study, results, out_dir)
     except KeyboardInterrupt:
         print("interrupted; finished runs are kept (run the study again to resume)",

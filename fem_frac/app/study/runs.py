@@ -204,11 +204,14 @@ def run_directory(runs_dir: Path, run: Run) -> Path:
 
 
 def run_study(study: Study, out_dir: Path, workers: int | None = None,
-              log: Callable[[str], None] = lambda _m: None) -> list[Result]:
+              log: Callable[[str], None] = lambda _m: None,
+              scheduler: str | None = None) -> list[Result]:
     """Run every run of the study not finished earlier; returns the results in grid order.
 
     Every run is written in its own directory directly inside ``out_dir/runs``; a run whose
     directory is a symbolic link (or no directory) is not run and fails with that message.
+    With ``scheduler`` (an address, or ``"local"``) the runs go to a Dask cluster
+    (:mod:`.cluster`), else to ``workers`` threads here, each waiting on its run's process.
     Raises :class:`FemFracError` when ``out_dir/runs`` cannot be made inside ``out_dir``."""
     runs_dir = runs_directory(out_dir)
     n = len(study.runs)
@@ -232,7 +235,9 @@ def run_study(study: Study, out_dir: Path, workers: int | None = None,
         log(_progress(done, n, r))
     workers = workers or study.spec.workers or os.cpu_count() or 1
     workers = max(1, min(workers, len(todo) or 1))
-    with contextlib.closing(_run_all(study, todo, runs_dir, workers)) as finished:
+    finished = (_run_all(study, todo, runs_dir, workers) if scheduler is None else
+                _run_on_cluster(study, todo, runs_dir, scheduler, workers, log))
+    with contextlib.closing(finished):
         for res in finished:
             results[res.run.index] = res
             if study.quantity is None:
@@ -256,17 +261,29 @@ def _run_all(study: Study, todo: list[Run], runs_dir: Path, workers: int):
         futures = {pool.submit(execute, case_path, str(runs_dir / run.run_id), run.overrides,
                                children): run for run in todo}
         for fut in cf.as_completed(futures):
-            yield _result(futures[fut], fut, runs_dir)
+            try:
+                rec = fut.result()
+            except Exception as exc:  # the run could not be started (or waited for)
+                rec = {"exit_code": None, "message": f"run failed to start: {exc!r}"}
+            yield _result(futures[fut], rec, runs_dir)
     finally:  # also on an interrupt: stop the runs under way, start no more
         children.stop()
         pool.shutdown(wait=True, cancel_futures=True)
 
 
-def _result(run: Run, fut: cf.Future, runs_dir: Path) -> Result:
-    try:
-        rec = fut.result()
-    except Exception as exc:  # the run could not be started (or waited for)
-        rec = {"exit_code": None, "message": f"run failed to start: {exc!r}"}
+def _run_on_cluster(study: Study, todo: list[Run], runs_dir: Path, scheduler: str,
+                    workers: int, log: Callable[[str], None]):
+    """Yield the result of each run of ``todo`` as it finishes on a Dask cluster."""
+    from .cluster import cluster_runs
+
+    with contextlib.closing(cluster_runs(study, todo, runs_dir, scheduler, workers,
+                                         log)) as sent:
+        for run, rec in sent:
+            yield _result(run, rec, runs_dir)
+
+
+def _result(run: Run, rec: dict, runs_dir: Path) -> Result:
+    """The result of ``run`` from its record (:func:`execute`) and its directory."""
     summary = _load_summary(runs_dir / run.run_id) if rec["exit_code"] == 0 else None
     res = Result(run, "ok" if summary else "failed", rec["exit_code"],
                  rec.get("message", ""), rec.get("peak_mib"), summary)
