@@ -29,7 +29,8 @@ from ..writers.directory import Manifest, check_directory, prepare_directory
 from ..writers.ground import ObstacleSeries, write_ground
 from ..writers.history import HistoryWriter
 from ..writers.paraview import view_scale, write_paraview_script
-from ..writers.series import SeriesWriter
+from ..writers.series import SeriesWriter, series_writer
+from ..writers.vtkhdf import check_format
 from .budget import BOUNDS, Bounds, check_budget
 from .initial import (  # noqa: F401 (initial_velocity: re-exported)
     check_initial,
@@ -90,6 +91,7 @@ def interface_recipe(fracture) -> InterfaceRecipe | None:
 
 def check_stages(case: Case) -> None:
     """Sections that only make sense together (located at the section that asks)."""
+    check_format(case.output)
     f = case.fragments
     if f is None:
         return
@@ -274,8 +276,12 @@ def run_case(case: Case, case_path: Path, out_dir: Path, name: str, overwrite: b
             raise
     write_json(out_dir / "summary.json", result)
     _warn_single_pass(case, setup, status.tally)
-    log(f"output     {result['output']['pvd']}")
+    log(f"output     {result['output'][_SERIES_KEY[case.output.format]]}")
     return result
+
+
+# summary.json's key of the series file, by output.format
+_SERIES_KEY = {"vtu": "pvd", "vtkhdf": "vtkhdf"}
 
 
 def _claim(out_dir: Path, name: str, overwrite: bool, resolved_yaml: str | None,
@@ -300,13 +306,14 @@ def _run(setup: Setup, case_path: Path, name: str, manifest: Manifest, status: R
         from ..rigid.stage import planes
 
         ground = write_ground(manifest, name, planes(case.fragments), setup.disc.mesh.points)
-    series = SeriesWriter(out_dir, name, manifest=manifest,
-                          compression=case.output.compression)
+    series = series_writer(out_dir, name, manifest=manifest,
+                           compression=case.output.compression, format=case.output.format)
     shown = _obstacle_series(setup, manifest, name)
     world, tally, record = _march(setup, manifest, series, status, timer, log,
                                   () if shown is None else (shown,))
     result = _summary(case, case_path, setup, world, tally, timer, log, record)
-    result["output"] = {"pvd": str(series.pvd_path), "steps": len(series.entries),
+    result["output"] = {_SERIES_KEY[case.output.format]: str(series.path),
+                        "steps": len(series.entries),
                         "history": str(out_dir / "history.csv")}
     if case.probes:
         result["output"]["probes"] = str(out_dir / f"{name}_probes.csv")
@@ -314,11 +321,11 @@ def _run(setup: Setup, case_path: Path, name: str, manifest: Manifest, status: R
     result["output"]["view"] = str(write_paraview_script(
         out_dir, name, view_scale(result["max_displacement"], setup.disc.mesh.points),
         case.fracture is not None and case.output.crack_surface, ground=ground is not None,
-        obstacles=shown is not None))
+        obstacles=shown is not None, suffix=series.path.suffix))
     if ground is not None:
         result["output"]["ground"] = str(ground)
     if shown is not None:
-        result["output"]["obstacles"] = str(shown.series.pvd_path)
+        result["output"]["obstacles"] = str(shown.series.path)
     return result
 
 
@@ -329,7 +336,8 @@ def _obstacle_series(setup: Setup, manifest: Manifest, name: str) -> ObstacleSer
     surface = fixed_surface(setup.obstacles, setup.disc.mesh.points)
     if surface is None:
         return None
-    return ObstacleSeries(manifest, name, output_plan(setup.case, setup.grid).due, *surface)
+    return ObstacleSeries(manifest, name, output_plan(setup.case, setup.grid).due, *surface,
+                          format=setup.case.output.format)
 
 
 def _known(setup: Setup, case_path: Path, status: RunStatus, timer: StageTimer) -> dict:
@@ -360,8 +368,9 @@ def _march(setup: Setup, manifest: Manifest, series: SeriesWriter, status: RunSt
     """Every step of the case with its output: the last world, the tally and the
     reference's recorder (``None`` when the case declares none that needs one)."""
     case, out_dir = setup.case, manifest.directory
-    cracks = CrackWriter(SeriesWriter(out_dir, f"{series.name}_crack", manifest=manifest,
-                                      compression=series.compression)) \
+    cracks = CrackWriter(series_writer(out_dir, f"{series.name}_crack", manifest=manifest,
+                                       compression=series.compression,
+                                       format=case.output.format)) \
         if case.fracture is not None and case.output.crack_surface else None
     world, tally = start(setup, timer, log)
     status.tally = tally

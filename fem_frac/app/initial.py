@@ -138,7 +138,8 @@ def _released(case: Case, d, v0) -> State:
 
 
 def run_series(case_dir: Path, spec) -> Path:
-    """The last ``.vtu`` of the series in ``spec.directory`` (relative to the case file);
+    """The last ``.vtu`` of the series in ``spec.directory`` (relative to the case file),
+    or its ``.vtkhdf`` (``output.format: vtkhdf``: the last step is read from it);
     located errors when there is none to read."""
     key = KEY + ("from_run", "directory")
     directory = case_dir / spec.directory
@@ -146,6 +147,10 @@ def run_series(case_dir: Path, spec) -> Path:
         raise CaseError(key, f"{directory} is no directory (the output directory of an "
                         "earlier run)")
     series = sorted(p for p in directory.glob("*.pvd") if not p.stem.endswith("_crack"))
+    hdf = sorted(p for p in directory.glob("*.vtkhdf")
+                 if not p.stem.endswith(("_crack", "_obstacles")))
+    if not series and len(hdf) == 1:
+        return hdf[0]
     if len(series) != 1:
         found = ", ".join(p.name for p in series) or "none"
         raise CaseError(key, f"{directory} holds {len(series)} series (.pvd: {found}); "
@@ -172,8 +177,8 @@ def run_state(case_dir: Path, spec, space) -> tuple[np.ndarray, np.ndarray | Non
     key = KEY + ("from_run",)
     path = run_series(case_dir, spec)
     try:
-        frame = meshio.read(path)
-    except Exception as exc:  # noqa: BLE001 (meshio raises many kinds)
+        frame = meshio.read(path) if path.suffix != ".vtkhdf" else _last_step(path)
+    except Exception as exc:  # noqa: BLE001 (meshio and h5py raise many kinds)
         raise CaseError(key + ("directory",), f"{path}: unreadable ({exc})") from None
     index = _matched(frame.points, space.node_points, key, path)
     fields = ["displacement"] + (["velocity"] if spec.velocity else [])
@@ -188,6 +193,16 @@ def run_state(case_dir: Path, spec, space) -> tuple[np.ndarray, np.ndarray | Non
             raise CaseError(key + ("directory",), f"{path}: '{name}' is not finite")
         out.append(values)
     return out[0], (out[1] if spec.velocity else None)
+
+
+def _last_step(path: Path):
+    """The last step of a ``.vtkhdf`` series: ``points`` and ``point_data``."""
+    from types import SimpleNamespace
+
+    from ..writers.vtkhdf import read_step
+
+    step = read_step(path, -1)
+    return SimpleNamespace(points=step["points"], point_data=step["point_data"])
 
 
 def _matched(points: np.ndarray, nodes: np.ndarray, key: tuple, path: Path) -> np.ndarray:

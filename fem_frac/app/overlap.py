@@ -73,6 +73,11 @@ def series_files(directory: Path) -> tuple[list[tuple[float, Path]], Path | None
         found = [p for p in sorted(directory.glob("*.pvd"))
                  if not p.stem.endswith(("_crack", "_obstacles"))]
         if not found:
+            hdf = sorted(directory.glob("*.vtkhdf"))
+            if hdf:  # output.format: vtkhdf
+                raise OverlapError(f"{directory}: no .pvd series, only {hdf[0].name}: overlap "
+                                   "reads the vtu format; run the case with --set "
+                                   "output.format=vtu")
             raise OverlapError(f"{directory}: no .pvd series")
         pvd = found[0]
         grounds = sorted(directory.glob(f"{pvd.stem}_ground.vtu"))

@@ -287,8 +287,9 @@ def _written_names(directory: Path, name: str) -> list[str]:
     indices and scratch files, the frames; a link or directory at one of them stops the
     run."""
     fixed = [*FIXED, MANIFEST, f"{name}_view.py", f"{name}_probes.csv"]
-    for series in (name, f"{name}_crack"):
-        fixed += [f"{series}.pvd", f"{series}.pvd.tmp", f"{series}.vtu.tmp"]
+    for series in (name, f"{name}_crack", f"{name}_obstacles"):
+        fixed += [f"{series}.pvd", f"{series}.pvd.tmp", f"{series}.vtu.tmp",
+                  f"{series}.vtkhdf"]
     frames = _names_matching(directory, f"{glob.escape(name)}_*.vtu")
     return [n for n in fixed if os.path.lexists(directory / n)] + frames
 

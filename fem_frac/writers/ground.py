@@ -1,5 +1,6 @@
 """The ground planes as a picture: ``<name>_ground.vtu``, one quad per plane, written once;
-the fixed obstacles as a series: ``<name>_obstacles.pvd`` (:class:`ObstacleSeries`).
+the fixed obstacles as a series: ``<name>_obstacles.pvd`` (or ``.vtkhdf``,
+:class:`ObstacleSeries`).
 
 The planes rigid fragments rest on (``fragments.ground``, the world's obstacles) are
 infinite and fixed; this file shows them in ParaView as squares under the scene. Fixed
@@ -36,7 +37,7 @@ from pathlib import Path
 import numpy as np
 
 from .directory import Manifest, create_plain
-from .series import SeriesWriter
+from .series import series_writer
 
 # The half side: this many bounding-box diagonals, plus this many heights above the plane.
 DIAGONALS = 1.5
@@ -124,11 +125,14 @@ class ObstacleSeries:
     triangle) with a zero point field ``displacement`` (Warp By Vector leaves it in
     place), at the times of the main series: ParaView's time steps and the
     ``<name>_view.py`` script treat it like the other series. An observer of the output
-    stage: called with every committed step ``(n, world)``, it writes when ``due(n)``."""
+    stage: called with every committed step ``(n, world)``, it writes when ``due(n)``.
+    ``format``: ``output.format`` (with ``vtkhdf``, ``<name>_obstacles.vtkhdf``, whose steps
+    share the one surface)."""
 
     def __init__(self, manifest: Manifest, name: str, due, points: np.ndarray,
-                 triangles: np.ndarray, cell_data: dict):
-        self.series = SeriesWriter(manifest.directory, obstacles_name(name), manifest=manifest)
+                 triangles: np.ndarray, cell_data: dict, format: str = "vtu"):
+        self.series = series_writer(manifest.directory, obstacles_name(name),
+                                    manifest=manifest, format=format)
         self.due, self.points, self.triangles = due, np.asarray(points, dtype=float), \
             np.asarray(triangles, dtype=np.int64)
         self.cell_data = dict(cell_data)

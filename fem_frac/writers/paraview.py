@@ -7,6 +7,8 @@ Run it with ``pvpython <name>_view.py`` (renders and saves ``<name>_view.png``; 
 ``--interact`` for a window to turn the model in), with ``paraview --script=<name>_view.py``,
 or from ParaView's Python Shell (*Run Script*): there it builds the pipeline in the open
 session. The series is looked for beside the script, so the output folder can be moved.
+With ``output.format: vtkhdf`` the series are ``.vtkhdf`` files (ParaView 5.12 or later
+reads their time steps).
 """
 
 from __future__ import annotations
@@ -36,23 +38,24 @@ def view_scale(max_displacement: float, points: np.ndarray) -> float:
 
 
 def write_paraview_script(directory: Path, name: str, scale: float, has_cracks: bool,
-                          ground: bool = False, obstacles: bool = False) -> Path:
+                          ground: bool = False, obstacles: bool = False,
+                          suffix: str = ".pvd") -> Path:
     """Write ``<name>_view.py`` into ``directory`` (beside ``<name>.pvd`` and, with
     ``has_cracks``, ``<name>_crack.pvd``; with ``ground``, ``<name>_ground.vtu``, shown
     unwarped in grey, half transparent; with ``obstacles``, ``<name>_obstacles.pvd``, the
-    fixed obstacles, in grey); warp factor ``scale`` (see :func:`view_scale`).
-    Returns its path."""
+    fixed obstacles, in grey); warp factor ``scale`` (see :func:`view_scale`); ``suffix``:
+    the series files' (``.pvd`` or ``.vtkhdf``). Returns its path."""
     directory = Path(directory)
     path = directory / f"{name}_view.py"
     path.write_text(script_text(name, scale, has_cracks, directory.resolve(), ground,
-                                obstacles))
+                                obstacles, suffix))
     return path
 
 
 def script_text(name: str, scale: float, has_cracks: bool, directory: Path,
-                ground: bool = False, obstacles: bool = False) -> str:
+                ground: bool = False, obstacles: bool = False, suffix: str = ".pvd") -> str:
     """The text of the view script (see the module docstring)."""
-    return _TEMPLATE.format(name=repr(name), scale=repr(float(scale)),
+    return _TEMPLATE.format(name=repr(name), suffix=repr(suffix), scale=repr(float(scale)),
                             cracks=repr(bool(has_cracks)), ground=repr(bool(ground)),
                             obstacles=repr(bool(obstacles)), directory=repr(str(directory)))
 
@@ -77,6 +80,7 @@ from paraview.simple import (
     GetActiveViewOrCreate,
     GetAnimationScene,
     Interact,
+    OpenDataFile,
     PVDReader,
     RenameSource,
     Render,
@@ -87,6 +91,7 @@ from paraview.simple import (
 )
 
 NAME = {name}
+SERIES = {suffix}  # the series files: .pvd (an index of .vtu files) or .vtkhdf
 WARP = {scale}
 CRACKS = {cracks}
 GROUND = {ground}
@@ -96,13 +101,20 @@ WRITTEN_IN = {directory}
 
 SCRIPT = globals().get("__file__")
 HERE = os.path.dirname(os.path.abspath(SCRIPT)) if SCRIPT else WRITTEN_IN
-if not os.path.exists(os.path.join(HERE, NAME + ".pvd")):
+if not os.path.exists(os.path.join(HERE, NAME + SERIES)):
     HERE = WRITTEN_IN
+
+
+def series_reader(path):
+    """A reader of a series file: the .pvd index, or a .vtkhdf file."""
+    if path.endswith(".pvd"):
+        return PVDReader(FileName=path)
+    return OpenDataFile(path)
 
 
 def warped(pvd, label):
     """The series of ``pvd`` moved by its point field displacement, WARP times."""
-    reader = PVDReader(FileName=os.path.join(HERE, pvd))
+    reader = series_reader(os.path.join(HERE, pvd))
     RenameSource(label, reader)
     warp = WarpByVector(Input=reader)
     warp.Vectors = ["POINTS", "displacement"]
@@ -112,12 +124,12 @@ def warped(pvd, label):
 
 
 view = GetActiveViewOrCreate("RenderView")
-model = Show(warped(NAME + ".pvd", NAME), view)
+model = Show(warped(NAME + SERIES, NAME), view)
 ColorBy(model, ("CELLS", "von_mises"))
 model.SetScalarBarVisibility(view, True)
 cracks = None
-if CRACKS and os.path.exists(os.path.join(HERE, NAME + "_crack.pvd")):
-    cracks = Show(warped(NAME + "_crack.pvd", NAME + " crack faces"), view)
+if CRACKS and os.path.exists(os.path.join(HERE, NAME + "_crack" + SERIES)):
+    cracks = Show(warped(NAME + "_crack" + SERIES, NAME + " crack faces"), view)
     ColorBy(cracks, ("CELLS", "opening_norm"))
     cracks.SetScalarBarVisibility(view, True)
 
@@ -138,8 +150,8 @@ if GROUND and os.path.exists(os.path.join(HERE, NAME + "_ground.vtu")):
     ground.DiffuseColor = [0.6, 0.6, 0.6]
     ground.Opacity = 0.5
 # the fixed obstacles and planes of the case's obstacles (moving ones are in the model)
-if OBSTACLES and os.path.exists(os.path.join(HERE, NAME + "_obstacles.pvd")):
-    fixed = PVDReader(FileName=os.path.join(HERE, NAME + "_obstacles.pvd"))
+if OBSTACLES and os.path.exists(os.path.join(HERE, NAME + "_obstacles" + SERIES)):
+    fixed = series_reader(os.path.join(HERE, NAME + "_obstacles" + SERIES))
     RenameSource(NAME + " obstacles", fixed)
     obstacles = Show(fixed, view)
     ColorBy(obstacles, None)

@@ -6,6 +6,9 @@ through a symbolic link planted at a frame's name. Each name is recorded in the 
 manifest (:class:`~fem_frac.writers.directory.Manifest`) before the file is created. Points
 hold reference coordinates; all motion goes into the point field ``displacement``
 (ParaView: Warp By Vector).
+
+:func:`series_writer` picks the writer of ``output.format``: this one (``vtu``, the default)
+or one ``.vtkhdf`` file per series (:mod:`~fem_frac.writers.vtkhdf`).
 """
 
 from __future__ import annotations
@@ -40,6 +43,11 @@ class SeriesWriter:
     @property
     def pvd_path(self) -> Path:
         return self.directory / f"{self.name}.pvd"
+
+    @property
+    def path(self) -> Path:
+        """The file to open in ParaView: the ``.pvd``."""
+        return self.pvd_path
 
     def write(
         self,
@@ -85,3 +93,22 @@ class SeriesWriter:
         create_plain(tmp)
         tmp.write_text("\n".join(lines))
         os.replace(tmp, self.pvd_path)
+
+
+#: ``output.format``: the file suffix of each series' index (what ParaView opens).
+FORMATS = {"vtu": ".pvd", "vtkhdf": ".vtkhdf"}
+
+
+def series_writer(directory: Path, name: str, manifest: Manifest | None = None,
+                  compression: str = "none", format: str = "vtu"):
+    """The writer of a series in ``format`` (``output.format``): a :class:`SeriesWriter`
+    (``vtu``: ``.pvd`` + ``.vtu`` files) or a
+    :class:`~fem_frac.writers.vtkhdf.VtkhdfSeriesWriter` (``vtkhdf``: one ``.vtkhdf``);
+    both ``write`` a step and keep ``entries`` and ``path``."""
+    if format == "vtkhdf":
+        from .vtkhdf import VtkhdfSeriesWriter
+
+        return VtkhdfSeriesWriter(directory, name, manifest=manifest, compression=compression)
+    if format != "vtu":
+        raise ValueError(f"unknown output format {format!r}")
+    return SeriesWriter(directory, name, manifest=manifest, compression=compression)

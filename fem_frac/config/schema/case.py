@@ -30,7 +30,13 @@ class Output(Section):
     compression: Literal["none", "zlib", "lzma"] = Field(
         default="none", description="compression of the .vtu data arrays: none (fastest to "
         "write), zlib (about half the size, about 6 times the writing time), lzma "
-        "(smallest, slowest); docs/performance.md, 'Output'")
+        "(smallest, slowest); docs/performance.md, 'Output'. With format vtkhdf: none or "
+        "zlib (HDF5's gzip filter); lzma is refused")
+    format: Literal["vtu", "vtkhdf"] = Field(
+        default="vtu", description="file format of every series: vtu (a .pvd index and one "
+        ".vtu per output step; every ParaView reads it) or vtkhdf (one <name>.vtkhdf per "
+        "series, VTKHDF 2.0 with a time axis, appended step by step: faster to write and "
+        "read, fewer files; needs h5py, and ParaView 5.12 or later); docs/output.md")
 
     #: Longest ``name`` (bytes, UTF-8): the files add up to 17 characters to it.
     NAME_MAX_BYTES: ClassVar[int] = 128
