@@ -118,12 +118,14 @@ def swept_boxes(bodies, dt: float, gravity, margin: np.ndarray):
 @dataclass(frozen=True, eq=False)
 class Touch:
     """Where two bodies ``a`` and ``b`` touch: the contact ``points (m, 3)`` (world), the
-    unit ``normal (3,)`` from ``a`` to ``b``, and the signed ``gap`` between them (negative:
-    penetration)."""
+    unit ``normal`` from ``a`` to ``b`` and the signed ``gap`` between them (negative:
+    penetration); one ``normal (3,)`` and ``gap`` for a hull's contact patch, one per point,
+    ``(m, 3)`` and ``(m,)``, where a body touches by its own tets
+    (:mod:`~fem_frac.rigid.nonconvex`)."""
 
     points: np.ndarray
     normal: np.ndarray
-    gap: float
+    gap: float | np.ndarray
 
 
 def _transform(body: RigidBody):

@@ -91,6 +91,14 @@ def contact_frame(n: np.ndarray) -> np.ndarray:
     return np.array([n, t1, np.cross(n, t1)])
 
 
+def frames(normals: np.ndarray) -> np.ndarray:
+    """(c, 3, 3) rows n, t1, t2: :func:`contact_frame` of each of ``normals (c, 3)``."""
+    helper = np.eye(3)[np.argmin(np.abs(normals), axis=1)]
+    t1 = np.cross(normals, helper)
+    t1 /= np.linalg.norm(t1, axis=1, keepdims=True)
+    return np.stack([normals, t1, np.cross(normals, t1)], axis=1)
+
+
 @dataclass(frozen=True, eq=False)
 class Contacts:
     """The active contact points of one body (c of them) at the start of a step.

@@ -54,20 +54,19 @@ from .body import (
     RigidBody,
     inverse_inertia_world,
     inverse_mass,
-    rotation_matrix,
-    world_points,
 )
 from .collide import hull
-from .contact import poisson_impulses
+from .contact import frames, poisson_impulses
 from .surface import (
     Exterior,
     Solid,
     face_normals,
-    hull_planes,
+    hull_gaps,
     inside_tets,
-    locate_in_solid,
     nearest_faces,
     solid,
+    solid_gaps,
+    surface_points,
 )
 
 # Gaps below this fraction of a body's radius count as touching.
@@ -152,29 +151,6 @@ def _near_nodes(el: Elements, body: RigidBody, radius: float, accel: np.ndarray,
     return nodes[np.linalg.norm(el.x[nodes] - body.position, axis=1) <= radius + reach]
 
 
-def _hull_gaps(x: np.ndarray, body: RigidBody) -> tuple[np.ndarray, np.ndarray]:
-    """``(gap, normal)`` of world points against the body's hull (module docstring)."""
-    normals, offsets = hull_planes(body)
-    distance = x @ normals.T - offsets
-    face = np.argmax(distance, axis=1)
-    return distance[np.arange(len(x)), face], normals[face]
-
-
-def _solid_gaps(x: np.ndarray, body: RigidBody, shape: Solid) -> tuple[np.ndarray, np.ndarray]:
-    """``(gap, normal)`` of world points against a fragment's own tets: minus the distance
-    to its nearest exterior face inside (normal: that face's, outward), the distance
-    outside (normal: from the closest point towards the point)."""
-    r = rotation_matrix(body.orientation)
-    local = (x - body.position) @ r
-    inside, face, weights, distance = locate_in_solid(local, shape)
-    closest = np.einsum("ij,ijk->ik", weights, shape.vertices[shape.faces[face]])
-    apart = (~inside) & (distance > 0.0)
-    normal = np.where(apart[:, None],
-                      (local - closest) / np.where(apart, distance, 1.0)[:, None],
-                      face_normals(shape.vertices, shape.faces)[face])
-    return np.where(inside, -distance, distance), normal @ r.T
-
-
 def _nodes_in_body(el: Elements, k: int, body: RigidBody, shape: Solid | None,
                    friction: float, accel: np.ndarray, dt: float) -> tuple | None:
     """The exterior nodes touching body ``k`` (its own tets when it has a ``shape``, else
@@ -186,7 +162,7 @@ def _nodes_in_body(el: Elements, k: int, body: RigidBody, shape: Solid | None,
     if near.size == 0:
         return None
     x = el.x[near]
-    gap, normal = _hull_gaps(x, body) if shape is None else _solid_gaps(x, body, shape)
+    gap, normal = hull_gaps(x, body) if shape is None else solid_gaps(x, body, shape)
     closing = _closing(gap, normal, el.v[near] - _rigid_motion(body, x),
                        el.a[near] - accel, dt)
     live = np.minimum(gap, closing) <= _SLOP * radius
@@ -201,19 +177,11 @@ def _nodes_in_body(el: Elements, k: int, body: RigidBody, shape: Solid | None,
             np.full(m, friction))
 
 
-def _surface_points(body: RigidBody, shape: Solid | None) -> np.ndarray:
-    """World points of a body tested against the elements: a fragment's exterior
-    vertices, else its hull's."""
-    if shape is None:
-        return world_points(body)
-    return body.position + shape.vertices[shape.surface] @ rotation_matrix(body.orientation).T
-
-
 def _vertices_in_elements(el: Elements, bodies, shapes, friction, accel,
                           dt: float) -> tuple | None:
     """The surface (fragments) or hull vertices of the bodies inside the deformed
     elements, or closing on their exterior in the next step."""
-    points = [_surface_points(b, s) for b, s in zip(bodies, shapes, strict=True)]
+    points = [surface_points(b, s) for b, s in zip(bodies, shapes, strict=True)]
     owner = np.repeat(np.arange(len(bodies)), [len(p) for p in points])
     p = np.concatenate(points) if points else np.zeros((0, 3))
     xv = el.vertices
@@ -273,15 +241,6 @@ def fragment_solid(fragment) -> Solid:
     :class:`~fem_frac.rigid.fragment.RigidFragment` (its tets in its body frame; built once
     per piece)."""
     return solid(fragment.body_coords, fragment.cells)
-
-
-def frames(normals: np.ndarray) -> np.ndarray:
-    """(c, 3, 3) rows n, t1, t2: orthonormal frames with the normals first (as
-    :func:`~fem_frac.rigid.contact.contact_frame`, vectorized)."""
-    helper = np.eye(3)[np.argmin(np.abs(normals), axis=1)]
-    t1 = np.cross(normals, helper)
-    t1 /= np.linalg.norm(t1, axis=1, keepdims=True)
-    return np.stack([normals, t1, np.cross(normals, t1)], axis=1)
 
 
 @dataclass(frozen=True, eq=False)

@@ -45,8 +45,17 @@ import numpy as np
 
 from .body import RigidBody, inverse_inertia_world, inverse_mass
 from .collide import Touch, candidate_pairs, hull, swept_boxes, touching
-from .contact import contact_frame, find_contacts, poisson_impulses, project, step, targets
+from .contact import (
+    contact_frame,
+    find_contacts,
+    frames,
+    poisson_impulses,
+    project,
+    step,
+    targets,
+)
 from .motion import free_flight
+from .nonconvex import touching_shapes
 
 # Pairs closer than this fraction of their radii count as touching (a resting contact at
 # gap 0, or a round-off apart, stays found).
@@ -80,7 +89,8 @@ class FixedBody:
 class Rows:
     """``c`` contact points: bodies ``first``, ``second`` (c,) (-1: a plane), the world
     ``point (c, 3)``, ``frame (c, 3, 3)`` (rows n, t1, t2; n from first to second), ``gap``,
-    ``restitution``, ``friction`` (c,), ``pair`` (c,): between two bodies (else a plane)."""
+    ``restitution``, ``friction`` (c,), ``pair`` (c,): between two bodies (else a plane),
+    ``projected`` (c,): a penetration the position projection closes (:func:`separate`)."""
 
     first: np.ndarray
     second: np.ndarray
@@ -90,6 +100,7 @@ class Rows:
     restitution: np.ndarray
     friction: np.ndarray
     pair: np.ndarray
+    projected: np.ndarray
 
     def __len__(self):
         return len(self.gap)
@@ -99,15 +110,29 @@ def _concatenate(parts: list[tuple]) -> Rows:
     if not parts:
         z = np.zeros(0)
         return Rows(z.astype(int), z.astype(int), np.zeros((0, 3)), np.zeros((0, 3, 3)),
-                    z, z, z, z.astype(bool))
+                    z, z, z, z.astype(bool), z.astype(bool))
     return Rows(*(np.concatenate(column) for column in zip(*parts, strict=True)))
 
 
 def _pair_part(i: int, j: int, touch: Touch, restitution: float, friction: float) -> tuple:
     m = touch.points.shape[0]
-    return (np.full(m, i), np.full(m, j), touch.points,
-            np.broadcast_to(contact_frame(touch.normal), (m, 3, 3)), np.full(m, touch.gap),
-            np.full(m, restitution), np.full(m, friction), np.ones(m, dtype=bool))
+    frame = (np.broadcast_to(contact_frame(touch.normal), (m, 3, 3))
+             if np.ndim(touch.normal) == 1 else frames(touch.normal))
+    return (np.full(m, i), np.full(m, j), touch.points, frame,
+            np.broadcast_to(np.asarray(touch.gap, dtype=float), (m,)),
+            np.full(m, restitution), np.full(m, friction), np.ones(m, dtype=bool),
+            np.full(m, np.ndim(touch.normal) == 1))
+
+
+def pair_touch(a: RigidBody, b: RigidBody, shapes: tuple, margin: float) -> Touch | None:
+    """Where ``a`` and ``b`` touch: by their hulls (coal, :func:`~fem_frac.rigid.collide.
+    touching`) when both are convex enough, else by their own tets
+    (:func:`~fem_frac.rigid.nonconvex.touching_shapes`); ``shapes``: their
+    :class:`~fem_frac.rigid.surface.Solid` or ``None`` (:func:`~fem_frac.rigid.nonconvex.
+    own_shape`)."""
+    if shapes[0] is None and shapes[1] is None:
+        return touching(a, b, margin)
+    return touching_shapes(a, shapes[0], b, shapes[1], margin)
 
 
 def _plane_parts(bodies, movable, planes, horizon: float) -> list[tuple]:
@@ -117,7 +142,8 @@ def _plane_parts(bodies, movable, planes, horizon: float) -> list[tuple]:
         m = len(c.gap)
         if m:
             parts.append((np.full(m, -1), np.full(m, k), bodies[k].position + c.arm, c.frame,
-                          c.gap, c.restitution, c.friction, np.zeros(m, dtype=bool)))
+                          c.gap, c.restitution, c.friction, np.zeros(m, dtype=bool),
+                          np.ones(m, dtype=bool)))
     return parts
 
 
@@ -133,14 +159,17 @@ def margin(a: RigidBody, b: RigidBody, dt: float) -> float:
 
 
 def contact_rows(bodies, movable, pairs, coefficients, planes, dt: float,
-                 touches=None) -> Rows:
+                 touches=None, shapes=None) -> Rows:
     """The contact points of ``bodies`` over a step ``dt``: of the ``pairs (k, 2)`` (with
     ``coefficients (k, 2)``: e, mu) as found by the narrow phase (or given as ``touches``),
-    and of the ``movable`` bodies with the planes."""
+    and of the ``movable`` bodies with the planes; ``shapes``: each body's own tets where it
+    touches by them (:func:`pair_touch`), ``None`` for all hulls."""
+    shapes = [None] * len(bodies) if shapes is None else shapes
     parts = []
     for k, (i, j) in enumerate(pairs):
         touch = (touches[k] if touches is not None
-                 else touching(bodies[i], bodies[j], margin(bodies[i], bodies[j], dt)))
+                 else pair_touch(bodies[i], bodies[j], (shapes[i], shapes[j]),
+                                 margin(bodies[i], bodies[j], dt)))
         if touch is not None:
             parts.append(_pair_part(i, j, touch, *coefficients[k]))
     return _concatenate(parts + _plane_parts(bodies, movable, planes, dt))
@@ -204,12 +233,12 @@ def resolve_rows(bodies, movable, rows: Rows, dt: float, v_rest: float):
 def separate(bodies, movable, rows: Rows) -> list:
     """The bodies translated along the normals, the least mass-weighted displacement that
     closes every penetration of ``rows`` (gap < 0); momenta kept."""
-    inside = np.flatnonzero(rows.gap < 0.0)
+    inside = np.flatnonzero((rows.gap < 0.0) & rows.projected)
     if inside.size == 0:
         return list(bodies)
     sub = Rows(*(getattr(rows, f)[inside] for f in
                  ("first", "second", "point", "frame", "gap", "restitution", "friction",
-                  "pair")))
+                  "pair", "projected")))
     n = len(bodies)
     # translations only: the (v) columns of the Jacobian, inverse masses 1/m
     jac = _jacobian(sub, np.array([b.position for b in bodies]), n).reshape(-1, n, 6)[:, :, :3]
@@ -240,8 +269,8 @@ def _per_body(rows: Rows, impulses: np.ndarray, obstacle: np.ndarray) -> np.ndar
 class Island:
     """Bodies that touch, for one step: ``bodies`` (movable, sleeping and fixed ones),
     ``movable (n,)``, ``obstacle (n,)`` (the fixed ones), the touching ``pairs (k, 2)``
-    (local indices), their ``coefficients (k, 2)`` (e, mu) and ``touches`` (at the start
-    of the step)."""
+    (local indices), their ``coefficients (k, 2)`` (e, mu), ``touches`` (at the start
+    of the step) and the bodies' ``shapes`` (:func:`pair_touch`)."""
 
     bodies: list
     movable: np.ndarray
@@ -249,6 +278,7 @@ class Island:
     pairs: np.ndarray
     coefficients: np.ndarray
     touches: list
+    shapes: list
 
 
 def _fly(bodies, movable, dt: float, gravity, planes) -> list:
@@ -278,16 +308,17 @@ def step_island(island: Island, dt: float, gravity, planes):
     tau = float(np.clip(np.min(np.maximum(rows.gap[fast], 0.0) / approach[fast]), 0.0, dt))
     at_impact = _fly(bodies, movable, tau, g, planes)
     rest = dt - tau
-    rows = contact_rows(at_impact, movable, island.pairs, island.coefficients, planes, rest)
+    rows = contact_rows(at_impact, movable, island.pairs, island.coefficients, planes, rest,
+                        shapes=island.shapes)
     threshold = v_rest - float(np.linalg.norm(g)) * rest
     hit, impulses = resolve_rows(at_impact, movable, rows, dt, threshold)
     moved = _fly(separate(hit, movable, rows), movable, rest, g, planes)
     return moved, _per_body(rows, impulses, island.obstacle)
 
 
-def _touches(everything, awake, dt: float, gravity) -> list[tuple[int, int, Touch]]:
+def _touches(everything, awake, dt: float, gravity, shapes) -> list[tuple[int, int, Touch]]:
     """``(i, j, touch)`` of every pair with an awake body that touches or may touch within
-    ``dt``: broad phase on swept boxes, then the narrow phase."""
+    ``dt``: broad phase on swept boxes, then the narrow phase (:func:`pair_touch`)."""
     speed = np.array([np.linalg.norm(b.momentum) * inverse_mass(b)
                       + hull(b.points).radius
                       * np.linalg.norm(inverse_inertia_world(b) @ b.angular_momentum)
@@ -297,8 +328,8 @@ def _touches(everything, awake, dt: float, gravity) -> list[tuple[int, int, Touc
     out = []
     for i, j in candidate_pairs(lo, hi):
         if awake[i] or awake[j]:
-            touch = touching(everything[i], everything[j],
-                             margin(everything[i], everything[j], dt))
+            touch = pair_touch(everything[i], everything[j], (shapes[i], shapes[j]),
+                               margin(everything[i], everything[j], dt))
             if touch is not None:
                 out.append((int(i), int(j), touch))
     return out
@@ -318,7 +349,8 @@ def _islands(n: int, touches) -> np.ndarray:
     return np.where(involved, labels, -1)
 
 
-def _island(members, touches, everything, movable, n: int, law: PairLaw, fixed) -> Island:
+def _island(members, touches, everything, movable, n: int, law: PairLaw, fixed,
+            shapes) -> Island:
     """The island of the bodies ``members`` (global ids) with the fixed bodies they touch."""
     mine = [(i, j, t) for i, j, t in touches if i in members or j in members]
     ids = sorted(set(members) | {k for i, j, _ in mine for k in (i, j)})
@@ -328,16 +360,20 @@ def _island(members, touches, everything, movable, n: int, law: PairLaw, fixed) 
                     else (law.restitution, law.friction) for i, j, _ in mine]
     return Island([everything[k] for k in ids], movable[ids], np.array(ids) >= n,
                   np.array([(local[i], local[j]) for i, j, _ in mine]).reshape(-1, 2),
-                  np.array(coefficients).reshape(-1, 2), [t for _, _, t in mine])
+                  np.array(coefficients).reshape(-1, 2), [t for _, _, t in mine],
+                  [shapes[k] for k in ids])
 
 
 def step_all(bodies, asleep, moving, dt: float, gravity, planes, fixed=(),
-             law: PairLaw = PairLaw()):
+             law: PairLaw = PairLaw(), shapes=None):
     """One step ``dt`` of every body (module docstring).
 
     bodies: the rigid bodies; asleep (n,): not stepped unless a moving body reaches them;
     moving (n,): bodies that moved in the last step (those wake the sleepers they touch);
-    planes; fixed: :class:`FixedBody` obstacles; law: e and mu between two bodies.
+    planes; fixed: :class:`FixedBody` obstacles; law: e and mu between two bodies;
+    shapes (n,): a body's own tets where it is far from convex
+    (:func:`~fem_frac.rigid.nonconvex.own_shape`), ``None`` where its hull is its shape
+    (all, when omitted; fixed bodies always).
     Returns ``(bodies, impulses (n, 2), woken (n,), pairs)``: the size of the net impulse
     each body received in the step from other bodies and from planes or fixed bodies, the
     sleepers woken, and the number of touching pairs.
@@ -347,7 +383,8 @@ def step_all(bodies, asleep, moving, dt: float, gravity, planes, fixed=(),
     asleep, moving = np.asarray(asleep, dtype=bool), np.asarray(moving, dtype=bool)
     everything = list(bodies) + [f.body for f in fixed]
     awake = np.concatenate([~asleep, np.zeros(len(fixed), dtype=bool)])
-    touches = _touches(everything, awake, dt, g) if len(everything) > 1 else []
+    shapes = (list(shapes) if shapes is not None else [None] * n) + [None] * len(fixed)
+    touches = _touches(everything, awake, dt, g, shapes) if len(everything) > 1 else []
     labels = _islands(n, touches)
     out, impulses = list(bodies), np.zeros((n, 2))
     woken = np.zeros(n, dtype=bool)
@@ -364,7 +401,8 @@ def step_all(bodies, asleep, moving, dt: float, gravity, planes, fixed=(),
         wake = bool(np.any(moving[members] & ~asleep[members]))
         woken[members] = asleep[members] & wake
         movable = np.concatenate([~asleep | woken, np.zeros(len(fixed), dtype=bool)])
-        island = _island(set(members.tolist()), touches, everything, movable, n, law, fixed)
+        island = _island(set(members.tolist()), touches, everything, movable, n, law, fixed,
+                         shapes)
         moved, received = step_island(island, dt, g, planes)
         ids = sorted(set(members.tolist()) | {k for i, j, _ in touches
                                               if i in members or j in members

@@ -38,6 +38,7 @@ from .body import kinetic_energy
 from .contact import Plane
 from .fragment import RigidFragment, rigid_piece
 from .loads import piece_loads
+from .nonconvex import own_shape
 from .pairs import PairLaw, step_all
 from .surface import exterior
 
@@ -85,12 +86,13 @@ def move(fragments: tuple[RigidFragment, ...], t0: float, t1: float, gravity: np
     asleep = np.array([f.resting >= SLEEP_STEPS for f in fragments], dtype=bool) & ~loaded
     moving = np.array([f.resting == 0 for f in fragments], dtype=bool)
     bodies = [f.body for f in fragments]
+    shapes = [own_shape(f) for f in fragments] if len(fragments) > 1 or fixed else None
     impulses = np.zeros((len(fragments), 2))
     woke = np.zeros(len(fragments), dtype=bool)
     for t in times[:-1]:
         bodies = _kicks(bodies, fragments, asleep, t, 0.5 * h)
         bodies, received, woken, _ = step_all(bodies, asleep, moving, h, gravity, obstacles,
-                                              fixed, law)
+                                              fixed, law, shapes)
         asleep, woke, impulses = asleep & ~woken, woke | woken, impulses + received
         bodies = _kicks(bodies, fragments, asleep, t + h, 0.5 * h)
     supported = bool(obstacles) or bool(fixed) or len(fragments) > 1

@@ -15,8 +15,15 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial import cKDTree
 
-from ..mesh.mesh import TET_EDGES, TET_FACES, edge_keys, exterior_face_rows, exterior_facets
-from .body import RigidBody, rotation_matrix
+from ..mesh.mesh import (
+    TET_EDGES,
+    TET_FACES,
+    edge_keys,
+    exterior_face_rows,
+    exterior_facets,
+    tet_volumes,
+)
+from .body import RigidBody, rotation_matrix, world_points
 from .collide import hull
 
 # A point counts as inside a tet when its barycentric coordinates are all above this
@@ -51,12 +58,14 @@ def exterior(tets: np.ndarray, n_points: int, element_dofs: np.ndarray) -> Exter
 class Solid:
     """A rigid fragment's own shape in its body frame: ``vertices (n, 3)``, ``tets (e, 4)``,
     ``faces (f, 3)`` its exterior (the faces held by one of its tets, crack faces included),
-    oriented outward, and ``surface (s,)`` the vertices on them."""
+    oriented outward, ``surface (s,)`` the vertices on them, and ``hull_excess`` the volume
+    its convex hull holds beyond its own, as a fraction of its own (0 for a convex piece)."""
 
     vertices: np.ndarray
     tets: np.ndarray
     faces: np.ndarray
     surface: np.ndarray
+    hull_excess: float = 0.0
 
 
 _SOLIDS: dict[int, Solid] = {}
@@ -80,9 +89,23 @@ def solid(body_coords: np.ndarray, cells: np.ndarray) -> Solid:
     inward = np.einsum("ij,ij->i", normal,
                        corner.mean(axis=1) - x[tets[rows // 4]].mean(axis=1)) < 0.0
     faces[inward] = faces[inward][:, [0, 2, 1]]
-    found = _SOLIDS[key] = Solid(x[: int(tets.max()) + 1], tets, faces, np.unique(faces))
+    surface = np.unique(faces)
+    found = _SOLIDS[key] = Solid(x[: int(tets.max()) + 1], tets, faces, surface,
+                                 _hull_excess(x[surface], x, tets))
     weakref.finalize(body_coords, _SOLIDS.pop, key, None)
     return found
+
+
+def _hull_excess(surface: np.ndarray, x: np.ndarray, tets: np.ndarray) -> float:
+    """Hull volume over the tets' volume, minus 1 (0 where either is degenerate)."""
+    from scipy.spatial import ConvexHull, QhullError
+
+    volume = float(np.abs(tet_volumes(x, tets)).sum())
+    try:
+        hull_volume = ConvexHull(surface).volume
+    except (QhullError, ValueError):
+        return 0.0
+    return max(hull_volume / volume - 1.0, 0.0) if volume > 0.0 else 0.0
 
 
 def locate_in_solid(points: np.ndarray, shape: Solid):
@@ -102,6 +125,40 @@ def hull_planes(body: RigidBody) -> tuple[np.ndarray, np.ndarray]:
     offsets = (h.vertices @ h.normals.T).max(axis=0)
     normals = h.normals @ r.T
     return normals, offsets + normals @ body.position
+
+
+def hull_gaps(x: np.ndarray, body: RigidBody) -> tuple[np.ndarray, np.ndarray]:
+    """``(gap (p,), normal (p, 3))`` of world points ``x (p, 3)`` against the body's convex
+    hull: the largest signed distance to its face planes (inside: the depth below the least
+    penetrated face; outside: a lower bound of the distance) and that face's outer normal."""
+    normals, offsets = hull_planes(body)
+    distance = x @ normals.T - offsets
+    face = np.argmax(distance, axis=1)
+    return distance[np.arange(len(x)), face], normals[face]
+
+
+def solid_gaps(x: np.ndarray, body: RigidBody, shape: Solid) -> tuple[np.ndarray, np.ndarray]:
+    """``(gap (p,), normal (p, 3))`` of world points ``x (p, 3)`` against a body's own tets
+    ``shape`` (a :class:`Solid` in its body frame): inside, minus the distance to its nearest
+    exterior face (normal: that face's, outward); outside, the distance to its surface
+    (normal: from the closest point towards the point)."""
+    r = rotation_matrix(body.orientation)
+    local = (x - body.position) @ r
+    inside, face, weights, distance = locate_in_solid(local, shape)
+    closest = np.einsum("ij,ijk->ik", weights, shape.vertices[shape.faces[face]])
+    apart = (~inside) & (distance > 0.0)
+    normal = np.where(apart[:, None],
+                      (local - closest) / np.where(apart, distance, 1.0)[:, None],
+                      face_normals(shape.vertices, shape.faces)[face])
+    return np.where(inside, -distance, distance), normal @ r.T
+
+
+def surface_points(body: RigidBody, shape: Solid | None) -> np.ndarray:
+    """World points of a body that can touch another: its own exterior vertices when it
+    has a ``shape``, else its hull's."""
+    if shape is None:
+        return world_points(body)
+    return body.position + shape.vertices[shape.surface] @ rotation_matrix(body.orientation).T
 
 
 def pairs_within(a: np.ndarray, b: np.ndarray, radius) -> tuple[np.ndarray, np.ndarray]:
