@@ -140,7 +140,10 @@ def test_the_run_lists_its_files_and_writes_no_vtu(runs):
     assert not list(directory.glob("*.vtu")) and not list(directory.glob("*.pvd"))
     summary = (directory / "summary.json").read_text()
     assert f"{NAME}.vtkhdf" in summary
-    assert "SERIES = '.vtkhdf'" in (directory / f"{NAME}_view.py").read_text()
+    view = (directory / f"{NAME}_view.py").read_text()
+    assert 'NAME + ".vtkhdf"' in view and '"_crack.vtkhdf"' in view
+    assert 'NAME + ".pvd"' not in view and "_crack.pvd" not in view
+    compile(view, "view.py", "exec")
 
 
 def test_overwrite_removes_the_vtkhdf_and_a_link_at_its_name_is_refused(tmp_path, capsys):

@@ -55,7 +55,7 @@ def write_paraview_script(directory: Path, name: str, scale: float, has_cracks: 
 def script_text(name: str, scale: float, has_cracks: bool, directory: Path,
                 ground: bool = False, obstacles: bool = False, suffix: str = ".pvd") -> str:
     """The text of the view script (see the module docstring)."""
-    return _TEMPLATE.format(name=repr(name), suffix=repr(suffix), scale=repr(float(scale)),
+    return _TEMPLATE.format(name=repr(name), ext=suffix, scale=repr(float(scale)),
                             cracks=repr(bool(has_cracks)), ground=repr(bool(ground)),
                             obstacles=repr(bool(obstacles)), directory=repr(str(directory)))
 
@@ -91,7 +91,6 @@ from paraview.simple import (
 )
 
 NAME = {name}
-SERIES = {suffix}  # the series files: .pvd (an index of .vtu files) or .vtkhdf
 WARP = {scale}
 CRACKS = {cracks}
 GROUND = {ground}
@@ -101,7 +100,7 @@ WRITTEN_IN = {directory}
 
 SCRIPT = globals().get("__file__")
 HERE = os.path.dirname(os.path.abspath(SCRIPT)) if SCRIPT else WRITTEN_IN
-if not os.path.exists(os.path.join(HERE, NAME + SERIES)):
+if not os.path.exists(os.path.join(HERE, NAME + "{ext}")):
     HERE = WRITTEN_IN
 
 
@@ -124,12 +123,12 @@ def warped(pvd, label):
 
 
 view = GetActiveViewOrCreate("RenderView")
-model = Show(warped(NAME + SERIES, NAME), view)
+model = Show(warped(NAME + "{ext}", NAME), view)
 ColorBy(model, ("CELLS", "von_mises"))
 model.SetScalarBarVisibility(view, True)
 cracks = None
-if CRACKS and os.path.exists(os.path.join(HERE, NAME + "_crack" + SERIES)):
-    cracks = Show(warped(NAME + "_crack" + SERIES, NAME + " crack faces"), view)
+if CRACKS and os.path.exists(os.path.join(HERE, NAME + "_crack{ext}")):
+    cracks = Show(warped(NAME + "_crack{ext}", NAME + " crack faces"), view)
     ColorBy(cracks, ("CELLS", "opening_norm"))
     cracks.SetScalarBarVisibility(view, True)
 
@@ -150,8 +149,8 @@ if GROUND and os.path.exists(os.path.join(HERE, NAME + "_ground.vtu")):
     ground.DiffuseColor = [0.6, 0.6, 0.6]
     ground.Opacity = 0.5
 # the fixed obstacles and planes of the case's obstacles (moving ones are in the model)
-if OBSTACLES and os.path.exists(os.path.join(HERE, NAME + "_obstacles" + SERIES)):
-    fixed = series_reader(os.path.join(HERE, NAME + "_obstacles" + SERIES))
+if OBSTACLES and os.path.exists(os.path.join(HERE, NAME + "_obstacles{ext}")):
+    fixed = series_reader(os.path.join(HERE, NAME + "_obstacles{ext}"))
     RenameSource(NAME + " obstacles", fixed)
     obstacles = Show(fixed, view)
     ColorBy(obstacles, None)
