@@ -181,6 +181,14 @@ def _plot(args) -> int:
 
 
 def main(argv: list[str] | None = None) -> int:
+    """The command line; under ``mpiexec -n N`` rank 0 runs it and the other ranks serve
+    its PETSc solves (fem_frac/solve/ranks.py)."""
+    from ..solve.ranks import main as on_ranks
+
+    return on_ranks(_main, argv)
+
+
+def _main(argv: list[str] | None = None) -> int:
     parser = _parser()
     args = parser.parse_args(argv)
     if args.command is None:

@@ -88,7 +88,8 @@ def discretize(recipe: Recipe, mesh: Mesh, timer: StageTimer, strict: bool = Tru
     # per-element properties follow the elements
     law = material_law(materials, recipe.plasticity)
     ops = build_operators(recipe, space, materials, law, timer)
-    constrained = Constrained(problem, recipe.analysis.linear_solver)
+    constrained = Constrained(problem, recipe.analysis.linear_solver,
+                              recipe.analysis.petsc)
     limit = None
     if recipe.explicit:
         with timer("time step"):

@@ -8,8 +8,12 @@ stored factor. Backends (measured in docs/solvers.md, reproduced by benchmarks/s
   directly (phase 33). x86-64 only, pip alone.
 - ``"cholmod"``: CHOLMOD through scikit-sparse; optional, needs SuiteSparse headers from apt.
 - ``"superlu"``: scipy's SuperLU, an LU that ignores symmetry; slow but works everywhere.
+- ``"petsc"``: not a factorization but PETSc's CG + GAMG (fem_frac/solve/petsc.py), optional;
+  here without the rigid-body modes, which :class:`~fem_frac.solve.constrained.Constrained`
+  adds for a stiffness matrix.
 
-``"auto"`` picks the first available in that order (the measured order, fastest first).
+``"auto"`` picks the first available of the direct solvers in that order (the measured
+order, fastest first); Constrained takes PETSc past a size (docs/solvers.md).
 
 Singular or indefinite matrices raise :class:`~fem_frac.errors.SolverError`, found in three
 ways: a zero, negative or non-finite diagonal before factorizing; the backend's own pivot
@@ -229,6 +233,10 @@ def _importable(method: str) -> bool:
             _pardiso_function()
         elif method == "cholmod":
             import sksparse.cholmod  # noqa: F401
+        elif method == "petsc":
+            from .petsc import installed
+
+            return installed()
     except (ImportError, OSError):
         return False
     return True
@@ -243,8 +251,10 @@ def _resolve(method: str) -> str:
     available = available_methods()
     if method == "auto":
         return available[0]
+    if method == "petsc" and _importable("petsc"):
+        return method
     if method not in available:
-        known = "" if method in _BACKENDS else "unknown "
+        known = "" if method in (*_BACKENDS, "petsc") else "unknown "
         raise ValueError(f"{known}linear solver {method!r}; available here: "
                          f"{', '.join(['auto', *available])}")
     return method
@@ -305,6 +315,11 @@ def factorize(a: sp.spmatrix | sp.sparray, method: str = "auto") -> Factorizatio
     start = time.perf_counter()
     a = sp.csr_matrix(a, dtype=np.float64)
     _check_matrix(a)
+    if name == "petsc":
+        from .petsc import PetscFactorization, Settings
+        from .ranks import active
+
+        return PetscFactorization(a, np.arange(a.shape[0]), None, Settings(), active())
     solve = _BACKENDS[name](a)
     factorization = Factorization(name, a.shape[0], solve)
     factorization.probe_residual = _probe(a, solve, name)

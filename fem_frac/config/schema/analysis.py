@@ -2,15 +2,77 @@
 
 from __future__ import annotations
 
+import importlib.util
+import os
 from typing import Annotated, Literal
 
-from pydantic import Field, ValidationInfo, field_validator, model_validator
+from pydantic import AfterValidator, Field, ValidationInfo, field_validator, model_validator
 
 from ..expression import parse
 from .base import FiniteFloat, NonNegativeFloat, PositiveFloat, PositiveInt, Section, Vector3
 from .loads import BoundaryCondition
 
-LinearSolver = Literal["auto", "pardiso", "cholmod", "superlu"]
+PETSC_INSTALL = "scripts/petsc-env.sh (docs/solvers.md, 'PETSc')"
+# What MPI launchers (Open MPI's mpiexec, MPICH's Hydra) tell each process of the job's
+# size: fem_frac.solve.ranks.MPI_SIZE_VARIABLES (config cannot import solve; a test keeps
+# the two equal).
+MPI_SIZE_VARIABLES = ("OMPI_COMM_WORLD_SIZE", "PMI_SIZE")
+
+
+def launched_ranks() -> int:
+    """The number of MPI ranks this process was started among (1 outside ``mpiexec``)."""
+    for name in MPI_SIZE_VARIABLES:
+        value = os.environ.get(name, "")
+        if value.isdigit():
+            return int(value)
+    return 1
+
+
+def _solver_here(method: str) -> str:
+    """``petsc`` needs petsc4py; several MPI ranks need a solver that uses them."""
+    if method == "petsc" and importlib.util.find_spec("petsc4py") is None:
+        raise ValueError(f"petsc4py is not installed; install it with {PETSC_INSTALL}, or "
+                         "use linear_solver: auto")
+    ranks = launched_ranks()
+    if ranks > 1 and method not in ("auto", "petsc"):
+        raise ValueError(f"{method} solves on one rank, and this run has {ranks} MPI ranks; "
+                         "use linear_solver: petsc (or auto), or run without mpiexec")
+    return method
+
+
+LinearSolver = Annotated[Literal["auto", "pardiso", "cholmod", "superlu", "petsc"],
+                         AfterValidator(_solver_here)]
+
+
+class PetscOptions(Section):
+    """How ``linear_solver: petsc`` solves (fem_frac/solve/petsc.py, docs/solvers.md).
+
+    ``pc``: ``gamg`` (algebraic multigrid with the rigid-body modes as near-null space,
+    the default), ``hypre`` (BoomerAMG) or ``mumps`` (a Cholesky factorization by MUMPS,
+    distributed over the ranks). ``ksp``: the Krylov method, default ``cg`` (``preonly``
+    with ``mumps``). ``rtol``: the relative residual each solve reaches (of the true
+    residual; the default matches PARDISO's displacements to 1e-8). ``options``: further
+    PETSc options, by name without the leading dash (``{pc_gamg_threshold: 0.02}``).
+    """
+
+    ksp: Literal["cg", "gmres", "preonly"] | None = None
+    pc: Literal["gamg", "hypre", "mumps"] = "gamg"
+    rtol: Annotated[float, Field(gt=0, lt=1, allow_inf_nan=False)] = 1e-10
+    max_iterations: PositiveInt = 1000
+    options: dict[str, str | int | float | bool] = {}
+
+    @model_validator(mode="after")
+    def _consistent(self):
+        if self.ksp == "preonly" and self.pc != "mumps":
+            raise ValueError(f"ksp: preonly applies the preconditioner once: with pc: {self.pc} "
+                             "that is one multigrid cycle, not a solve; use ksp: cg")
+        for name in self.options:
+            if not name or name.startswith("-") or not all(c.isalnum() or c == "_"
+                                                           for c in name):
+                raise ValueError(f"options: {name!r} is not a PETSc option name (letters, "
+                                 "digits and underscores, without the leading dash)")
+        return self
+
 
 # The Newmark integrator's defaults: average acceleration (unconditionally stable, no
 # numerical damping). DynamicAnalysis.newmark_beta / newmark_gamma resolve them.
@@ -44,6 +106,7 @@ class StaticAnalysis(Section):
 
     type: Literal["static"] = "static"
     linear_solver: LinearSolver = "auto"
+    petsc: PetscOptions = PetscOptions()
     equilibrium: Equilibrium = Equilibrium()
 
 
@@ -53,6 +116,7 @@ class _Stepped(Section):
     steps: PositiveInt | None = Field(default=None, description="number of time steps")
     output_every: PositiveInt = Field(default=1, description="write every n-th step")
     linear_solver: LinearSolver = "auto"
+    petsc: PetscOptions = PetscOptions()
     equilibrium: Equilibrium = Equilibrium()
 
     def _check_times(self, default_end: float | None):
