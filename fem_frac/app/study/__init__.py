@@ -23,7 +23,10 @@ the relative difference of a summary quantity from a reference value estimated p
 by Richardson extrapolation of its three finest runs (:func:`richardson`).
 
 Modules: :mod:`.spec` (the study file and its grid), :mod:`.runs` (running it),
-:mod:`.analysis` (errors, rates, Pareto front), :mod:`.output` (csv, json, plot).
+:mod:`.analysis` (errors, rates, Pareto front), :mod:`.output` (csv, json, plot); for
+``--scheduler`` (a Dask cluster, no shared filesystem): :mod:`.cluster` (submitting and
+gathering), :mod:`.inputs` (the files a run reads), :mod:`.remote` (the task on a worker and
+what it sends back).
 """
 
 from .analysis import (
