@@ -313,3 +313,36 @@ def test_an_unreachable_scheduler_is_one_line(tmp_path, capsys, monkeypatch):
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and err[0].startswith("error: --scheduler tcp://127.0.0.1:9: cannot "
                                                "connect"), err
+
+
+def test_a_worker_that_dies_loses_only_its_run(cluster, tmp_path):
+    """The worker process of a run under way is killed (SIGKILL): the scheduler starts the
+    run again on a worker and the study completes, every row ok."""
+    import threading
+
+    import psutil
+
+    address, workers, _ = cluster
+    path = _write_study(tmp_path, STUDY.replace("[0.2, 0.14, 0.098]", "[0.07, 0.06]"))
+    outcome = {}
+    study = threading.Thread(target=lambda: outcome.setdefault("code", main(
+        ["study", str(path), "-o", str(tmp_path / "out"), "-q", "--scheduler", address])))
+    study.start()
+    killed = None
+    deadline = time.monotonic() + 60
+    while killed is None and study.is_alive() and time.monotonic() < deadline:
+        for proc in psutil.process_iter(["cmdline"]):
+            cmd = " ".join(proc.info["cmdline"] or [])
+            if "fem_frac run" in cmd and any(str(w / "tmp") in cmd for w in workers):
+                with _gone():
+                    proc.parent().kill()  # the worker process (its nanny starts a new one)
+                    proc.kill()  # the run it left
+                    killed = cmd
+                break
+        time.sleep(0.05)
+    study.join(120)
+    assert killed is not None, "no run was seen under way on the cluster"
+    assert outcome.get("code") == 0
+    assert [r["status"] for r in _rows(tmp_path / "out" / "study.csv")] == ["ok", "ok"]
+    with distributed.Client(address, timeout="30s") as client:  # whole again for others
+        client.wait_for_workers(2, timeout=60)

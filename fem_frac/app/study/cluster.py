@@ -2,10 +2,10 @@
 
 Each run is one task, :func:`.remote.run_remote`, which runs the case as ``fem-frac run`` in
 a process of its own on a worker, in a temporary directory of the worker's machine; its
-inputs travel in the task's arguments (each file sent to the cluster once, shared by the
-runs that read it) and its output comes back as bytes (:mod:`.remote`), so no filesystem
-is assumed shared. ``--scheduler local`` starts a :class:`distributed.LocalCluster` of
-``workers`` processes of one thread each (one run at a time per worker).
+inputs travel with the task (:func:`_submit`) and its output comes back as bytes
+(:mod:`.remote`), so no filesystem is assumed shared. ``--scheduler local`` starts a
+:class:`distributed.LocalCluster` of ``workers`` processes of one thread each (one run at a
+time per worker).
 
 A task whose worker dies is started again on another worker by the scheduler, up to
 ``distributed.scheduler.allowed-failures`` times (3 by default), then its run fails
@@ -28,6 +28,9 @@ from .inputs import run_inputs
 from .spec import Run, Study
 
 HINT = "pip install 'fem-frac[cluster]'"
+
+#: Input files up to this size (bytes) travel inside each task; larger ones are scattered.
+EMBED_BYTES = 2**20
 
 #: How long to wait for the scheduler to answer.
 CONNECT_TIMEOUT = "20s"
@@ -90,7 +93,10 @@ def cluster_runs(study: Study, todo: list[Run], runs_dir: Path, scheduler: str, 
 
 
 def _submit(client, todo: list[Run], inputs: dict) -> dict:
-    """Submit one task per run, in grid order; every input file is scattered once."""
+    """Submit one task per run, in grid order. An input file up to :data:`EMBED_BYTES` is
+    an argument of the task itself (the scheduler holds it, so a task started again after
+    its worker died has it); a larger one is sent once to every worker (``broadcast``: it
+    survives the death of any one of them) and shared by the runs that read it."""
     scattered: dict[Path, object] = {}
     futures = {}
     tag = uuid.uuid4().hex[:8]
@@ -100,7 +106,9 @@ def _submit(client, todo: list[Run], inputs: dict) -> dict:
         for rel in (ri.case, *ri.files):
             path = ri.root / rel
             if path not in scattered:
-                scattered[path] = client.scatter(path.read_bytes(), hash=False)
+                data = path.read_bytes()
+                scattered[path] = data if len(data) <= EMBED_BYTES else \
+                    client.scatter(data, hash=False, broadcast=True)
             files[rel] = scattered[path]
         fut = client.submit(remote.run_remote, ri.case, files, run.overrides, run.run_id,
                             remote.RETURN_CAP_BYTES, key=f"fem-frac-run-{tag}-{run.index}",
