@@ -27,6 +27,9 @@ from __future__ import annotations
 
 import ctypes
 import functools
+import glob
+import os
+import sys
 import time
 import weakref
 from collections.abc import Callable
@@ -95,10 +98,40 @@ _PARDISO_ERRORS = {
 
 @functools.cache
 def _pardiso_function():
-    """MKL's ``pardiso`` C function with its argument types, found by pypardiso's loader."""
-    from pypardiso import PyPardisoSolver
+    """MKL's ``pardiso`` C function with its argument types, found by pypardiso's loader.
 
-    return PyPardisoSolver()._mkl_pardiso
+    Importing pypardiso makes a solver (``pypardiso.ps``), whose loader looks for MKL's
+    library; that one is reused (another ``PyPardisoSolver()`` would look again). Where
+    ``find_library`` does not know the library, the loader globs the whole Python prefix
+    recursively (0.25 CPU s in a 2.5 GB venv): the library the mkl wheel puts directly in
+    ``sys.prefix/lib`` is named to it (``PYPARDISO_MKL_RT``) for the import instead."""
+    path = _mkl_rt_in_prefix()
+    if path is not None:
+        os.environ["PYPARDISO_MKL_RT"] = path
+    try:
+        from pypardiso import ps
+    finally:
+        if path is not None:
+            del os.environ["PYPARDISO_MKL_RT"]
+    return ps._mkl_pardiso
+
+
+def _mkl_rt_in_prefix() -> str | None:
+    """The MKL runtime library pypardiso's loader would take from ``sys.prefix/lib*``
+    (shortest name first, the first that loads), when nothing earlier in its order names
+    one: ``PYPARDISO_MKL_RT`` or ``find_library``. ``None``: leave the search to it."""
+    from ctypes.util import find_library
+
+    if os.environ.get("PYPARDISO_MKL_RT") or find_library("mkl_rt") \
+            or find_library("mkl_rt.1"):
+        return None
+    for path in sorted(glob.glob(f"{sys.prefix}/[Ll]ib*/*mkl_rt*"), key=len):
+        try:
+            ctypes.CDLL(path)
+        except OSError:
+            continue
+        return path
+    return None
 
 
 def _pardiso_iparm() -> np.ndarray:
