@@ -13,7 +13,7 @@ stored factor. Backends (measured in docs/solvers.md, reproduced by benchmarks/s
   adds for a stiffness matrix.
 
 ``"auto"`` picks the first available of the direct solvers in that order (the measured
-order, fastest first); Constrained takes PETSc past a size (docs/solvers.md).
+order, fastest first); under mpiexec with several ranks it is PETSc (docs/solvers.md).
 
 Singular or indefinite matrices raise :class:`~fem_frac.errors.SolverError`, found in three
 ways: a zero, negative or non-finite diagonal before factorizing; the backend's own pivot

@@ -14,6 +14,7 @@ The KSP and its preconditioner are set up once per matrix and reused by every so
 
 from __future__ import annotations
 
+import contextlib
 import functools
 import importlib.util
 import time
@@ -26,8 +27,7 @@ from ..errors import FemFracError, SolverError
 
 INSTALL = "scripts/petsc-env.sh (docs/solvers.md, 'PETSc')"
 OPTIONS_PREFIX = "fem_frac_"
-# ``auto`` takes PETSc (when installed) from this many free dofs on (docs/solvers.md)
-AUTO_UNKNOWNS = 10**9
+_OPTIONS_SET: list[str] = []  # the options of ``analysis.petsc.options`` in PETSc's database
 
 
 def installed() -> bool:
@@ -37,15 +37,17 @@ def installed() -> bool:
 
 def chosen(method: str, unknowns: int) -> bool:
     """Whether ``linear_solver: method`` solves a system of ``unknowns`` with PETSc:
-    ``petsc``, or ``auto`` on several MPI ranks or past ``AUTO_UNKNOWNS`` with petsc4py
-    installed (the measured crossover, docs/solvers.md)."""
+    ``petsc``, or ``auto`` on several MPI ranks. On one rank ``auto`` stays with the direct
+    solvers at every size: PETSc's setup is cheaper past ~50k unknowns, but each of its
+    solves costs 5-8 back-solves of PARDISO, so which wins depends on how many solves a run
+    makes (docs/solvers.md, "Which solver, how many ranks")."""
     if method == "petsc":
         return True
     if method != "auto":
         return False
     from .ranks import active
 
-    return active() is not None or (unknowns >= AUTO_UNKNOWNS and installed())
+    return active() is not None
 
 
 @functools.cache
@@ -150,9 +152,16 @@ class LocalSystem:
     def _ksp(self, comm, s: Settings):
         PETSc = petsc()
         options = PETSc.Options()
+        # this solver's options only (those of the one before are taken out); they stay
+        # until the next setup, as some are read at every solve (ksp_converged_reason)
+        for name in _OPTIONS_SET:
+            options.delValue(OPTIONS_PREFIX + name)
+        _OPTIONS_SET.clear()
         for name, value in s.options:
-            options[OPTIONS_PREFIX + name] = str(value).lower() if isinstance(value, bool) \
-                else value
+            # true: the option given bare (-ksp_converged_reason), as on a command line
+            options[OPTIONS_PREFIX + name] = (None if value is True else "false"
+                                              if value is False else value)
+            _OPTIONS_SET.append(name)
         ksp = PETSc.KSP().create(comm=comm)
         ksp.setOptionsPrefix(OPTIONS_PREFIX)
         ksp.setOperators(self.matrix)
@@ -168,8 +177,6 @@ class LocalSystem:
         ksp.setTolerances(rtol=s.rtol, atol=0.0, max_it=s.max_iterations)
         ksp.setFromOptions()
         ksp.setUp()  # the preconditioner (and a factorization) is made here, once
-        for name, _ in s.options:  # this solver's options only: the next one sets its own
-            options.delValue(OPTIONS_PREFIX + name)
         return ksp
 
     def solve(self, b_local: np.ndarray) -> tuple[np.ndarray, int, int, float]:
@@ -184,6 +191,20 @@ class LocalSystem:
         for obj in (self.ksp, self.x, self.b, self.near_null, self.matrix):
             if obj is not None:
                 obj.destroy()
+
+
+@contextlib.contextmanager
+def refused(settings: Settings):
+    """PETSc's errors (an unknown type, a bad option value, a missing package) as one line
+    naming ``analysis.petsc``: PETSc's last message and its error code."""
+    PETSc = petsc()
+    try:
+        yield
+    except PETSc.Error as exc:
+        lines = [line.removeprefix("[0] ") for line in str(exc).splitlines()]
+        options = f", options {dict(settings.options)}" if settings.options else ""
+        raise FemFracError(f"analysis.petsc ({settings.ksp} + {settings.pc}{options}): PETSc "
+                           f"refused it: {lines[-1]} ({lines[0]})") from None
 
 
 def reason_name(reason: int) -> str:
@@ -211,11 +232,12 @@ class PetscFactorization:
         self.iterations: list[int] = []
         self.probe_residual = float("nan")
         a = eliminated(matrix, free)
-        if ranks is None:
-            self.local = LocalSystem(petsc().COMM_SELF, self.full, (0, self.full),
-                                     row_block(a, 0, self.full), points, settings)
-        else:
-            self.local = ranks.setup(a, points, settings)
+        with refused(settings):
+            if ranks is None:
+                self.local = LocalSystem(petsc().COMM_SELF, self.full, (0, self.full),
+                                         row_block(a, 0, self.full), points, settings)
+            else:
+                self.local = ranks.setup(a, points, settings)
         self.factor_time = time.perf_counter() - start
 
     def solve(self, b: np.ndarray) -> np.ndarray:
@@ -226,10 +248,11 @@ class PetscFactorization:
             raise ValueError(f"right-hand side of shape {b.shape}; expected ({self.n},)")
         full = np.zeros(self.full)
         full[self.free] = b
-        if self.ranks is None:
-            x, its, reason, residual = self.local.solve(full)
-        else:
-            x, its, reason, residual = self.ranks.solve(self.local, full)
+        with refused(self.settings):
+            if self.ranks is None:
+                x, its, reason, residual = self.local.solve(full)
+            else:
+                x, its, reason, residual = self.ranks.solve(self.local, full)
         self.iterations.append(its)
         if reason < 0 or not np.all(np.isfinite(x)):
             s = self.settings

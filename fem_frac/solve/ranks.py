@@ -191,6 +191,15 @@ def main(command: Callable[[list[str] | None], int], argv: list[str] | None) -> 
               "with scripts/petsc-env.sh (docs/solvers.md, 'PETSc')", file=sys.stderr)
         return 2
     comm = MPI.COMM_WORLD
+    from ..errors import FemFracError
+    from .petsc import petsc
+
+    try:
+        petsc()  # PETSc's initialization is collective: every rank, before anything else
+    except FemFracError as exc:
+        if comm.rank == 0:
+            print(f"error: started on {comm.size} MPI ranks: {exc}", file=sys.stderr)
+        return 2
     if comm.rank != 0:
         return serve(comm)
     _ACTIVE = Ranks(comm)
