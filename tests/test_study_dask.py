@@ -22,22 +22,9 @@ distributed = pytest.importorskip("distributed")
 
 from fem_frac.app.study import remote  # noqa: E402
 from fem_frac.app.study.inputs import run_inputs  # noqa: E402
+from tests.test_study import CASE  # noqa: E402
 
 REPO = Path(__file__).resolve().parents[1]
-
-CASE = textwrap.dedent(
-    """\
-    mesh:
-      geometry: {type: box, lengths: [1.0, 0.25, 0.25]}
-      element_size: 0.25
-      order: 1
-    material: {youngs_modulus: 210e9, poissons_ratio: 0.3}
-    boundary_conditions:
-      - {type: fixed, boundary: xmin}
-      - {type: traction, boundary: xmax, traction: [0, 0, -1e5]}
-    reference: {solution: cantilever}
-    """
-)
 
 STUDY = textwrap.dedent(
     """\
