@@ -255,6 +255,17 @@ Reading:
   about {it15:.0f} iterations a step once the wall yields (plain modified Newton, linear
   convergence: about 3x as many, with the same results); every run reached 1e-8.
 
+One load step is enough for this case: the loading is monotonic and proportional, and on
+the same mesh one step reaches the u_b of ten to 6e-5 of itself or better, 0.4-1.3 % of
+the discretization error on meshes of element size 0.5 to 0.24 (a discretization effect,
+it shrinks with h; `tests/test_hill_speed.py`), in 30 iterations instead of 102, 22 at
+tolerance 1e-6, which moves u_b by 5e-8. Run as a whole `fem-frac run`, P2 in one step
+reaches -1.46e-3 at element size 0.24 in 1.8 CPU s (tolerance 1e-6; the least of 3 runs,
+which vary by up to 0.5 s) and -8.3e-5 at 0.1 in 11.7 (1e-5), against 2.2 and 19.6 with
+the ten steps above; full Newton takes 6
+iterations in one step but costs more than it saves (`python benchmarks/hill_speed.py`,
+docs/performance.md, "The Hill sphere: error against process CPU time").
+
 ## Volumetric locking of linear tets
 
 Plastic flow is isochoric. A standard linear tet mesh has one volumetric-strain constraint

@@ -11,7 +11,9 @@ the error is ``summary.json``'s ``reference.relative_error`` (the mean u . x/|x|
 outer nodes, as tests/test_hill.py measures it), the iterations per load step are
 ``history.csv``'s ``iterations``. The configurations run round-robin, ``--repeats`` times
 each; the table gives the CPU time's minimum and spread (max - min) and the wall time's
-minimum. The load average is printed before and after.
+minimum; a second table the run's own wall time per stage (summary.json), then the CPU time
+of a process that only starts and imports what a run imports. The load average is printed
+before and after.
 
     python benchmarks/hill_speed.py                      # every configuration, 3 repeats
     python benchmarks/hill_speed.py --only P2-0.25-s10-mn P2-0.25-s1-mn --repeats 5
@@ -51,11 +53,19 @@ class Config:
     steps: int
     method: str = "mn"  # a key of METHODS
     tolerance: float = 1e-8
+    threads: int | None = None  # OMP_NUM_THREADS of the process (None: not set)
 
     @property
     def name(self) -> str:
         tol = "" if self.tolerance == 1e-8 else f"-tol{self.tolerance:g}"
-        return f"P{self.order}-{self.size:g}-s{self.steps}-{self.method}{tol}"
+        omp = "" if self.threads is None else f"-omp{self.threads}"
+        return f"P{self.order}-{self.size:g}-s{self.steps}-{self.method}{tol}{omp}"
+
+    def env(self) -> dict:
+        env = dict(os.environ)
+        if self.threads is not None:
+            env["OMP_NUM_THREADS"] = str(self.threads)
+        return env
 
     def case(self) -> dict:
         case = hill_case(self.order, self.size, steps=self.steps)
@@ -81,6 +91,8 @@ def _configs() -> list[Config]:
                 Config(2, size, 1, "mn", 1e-5)]
     out += [Config(2, 0.1, 10), Config(2, 0.1, 1), Config(2, 0.1, 1, "mn", 1e-6),
             Config(2, 0.1, 1, "mn", 1e-5), Config(2, 0.105, 1, "mn", 1e-6)]
+    # one thread (OMP_NUM_THREADS=1: gmsh, MKL and the BLAS): no CPU spent by idle workers
+    out += [Config(2, 0.24, 1, "mn", 1e-6, 1), Config(2, 0.1, 1, "mn", 1e-5, 1)]
     return out
 
 
@@ -110,7 +122,7 @@ def run(config: Config, work: Path, command: Path = FEM_FRAC) -> Run:
     case.write_text(yaml.safe_dump(config.case()))
     before, start = cpu_children(), time.perf_counter()
     subprocess.run([str(command), "run", str(case), "-o", str(out), "-q", "--overwrite"],
-                   check=True)
+                   check=True, env=config.env())
     wall, cpu = time.perf_counter() - start, cpu_children() - before
     summary = json.loads((out / "summary.json").read_text())
     with open(out / "history.csv", newline="") as f:
@@ -122,8 +134,8 @@ def run(config: Config, work: Path, command: Path = FEM_FRAC) -> Run:
 
 def table(runs: dict[str, list[Run]]) -> str:
     lines = ["| configuration | P | element size | dofs | load steps | method | tolerance | "
-             "u(b) error | CPU s min | CPU s spread | wall s min | iterations per load step |",
-             "|---|---|---|---|---|---|---|---|---|---|---|---|"]
+             "OMP_NUM_THREADS | u(b) error | CPU s min | CPU s spread | wall s min | "
+             "iterations per load step |", "|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
     for name, rs in runs.items():
         c, first = rs[0].config, rs[0]
         cpus = [r.cpu for r in rs]
@@ -131,10 +143,42 @@ def table(runs: dict[str, list[Run]]) -> str:
         lines.append(
             f"| {name} | P{c.order} | {c.size:g} | {first.dofs:,} | {c.steps} | "
             f"{METHODS[c.method][0]}{'' if c.method != 'mn-plain' else ' (plain)'} | "
-            f"{c.tolerance:g} | {' / '.join(sorted(errors))} | {min(cpus):.2f} | "
+            f"{c.tolerance:g} | {c.threads or ''} | {' / '.join(sorted(errors))} | "
+            f"{min(cpus):.2f} | "
             f"{max(cpus) - min(cpus):.2f} | {min(r.wall for r in rs):.2f} | "
             f"{' '.join(map(str, first.iterations))} |")
     return "\n".join(lines)
+
+
+STAGES = ("mesh", "space", "assemble", "factorize", "equilibrium", "output", "total")
+
+
+def stage_table(runs: dict[str, list[Run]]) -> str:
+    """The run's own wall seconds per stage (summary.json's ``wall_time_s``) in each
+    configuration's run with the least CPU time. Wall, not CPU: on shared cores a stage
+    waits, and PARDISO runs on two threads."""
+    lines = ["| configuration | CPU s | " + " | ".join(STAGES) + " |",
+             "|---|---|" + "---|" * len(STAGES)]
+    for name, rs in runs.items():
+        r = min(rs, key=lambda r: r.cpu)
+        cells = " | ".join(f"{r.stages.get(k, 0.0):.2f}" for k in STAGES)
+        lines.append(f"| {name} | {r.cpu:.2f} | {cells} |")
+    return "\n".join(lines)
+
+
+STARTUP = ("import fem_frac.app.cli, fem_frac.app.driver; "
+           "from fem_frac.solve.linalg import available_methods; available_methods()")
+
+
+def startup(repeats: int) -> list[float]:
+    """CPU seconds of a process that only starts: the interpreter, the imports of a run
+    (``fem_frac.app.driver``) and the linear solver's lookup (MKL's library)."""
+    out = []
+    for _ in range(repeats):
+        before = cpu_children()
+        subprocess.run([sys.executable, "-c", STARTUP], check=True)
+        out.append(cpu_children() - before)
+    return out
 
 
 def cheapest(runs: dict[str, list[Run]], bound: float) -> str:
@@ -177,6 +221,11 @@ def main() -> None:
           file=sys.stderr)
     print(table(runs))
     print()
+    print(stage_table(runs))
+    print()
+    cpus = startup(args.repeats)
+    print(f"start-up (python -c {STARTUP!r}): {min(cpus):.2f} CPU s min, "
+          f"spread {max(cpus) - min(cpus):.2f}")
     print(cheapest(runs, 1.5e-3))
     print(cheapest(runs, 1e-4))
     if args.json:
