@@ -79,11 +79,11 @@ OVERLAP_PENDING = {
                      "every other frame within 0.73 %): the stub's elements went into the "
                      "half in the steps before, when the contact with the finite elements "
                      "acts between steps only (docs/fragments.md)",
-    "projectile_plate": "contact with the finite elements is off (the stand-in pressure pulse "
-                        "strikes the plate): the ball passes into the plate (fem-frac "
-                        "overlap: 5.7 % of the ball's size at the end); with the contact on "
-                        "(Newmark, lumped mass, no stand-in) the ball reaches 1.4 % and a "
-                        "piece that breaks off 3.6 % (docs/fragments.md)",
+    "projectile_plate": "the ball strikes the plate through the contact with the finite "
+                        "elements, which acts between steps: it reaches 0.18 mm (1.4 % of "
+                        "its size) into the plate, and the piece it knocks out is born "
+                        "0.33 mm (3.6 %) inside it, where the crack faces crossed in the "
+                        "step that cut it out (docs/fragments.md)",
 }
 
 
@@ -144,7 +144,13 @@ def check_crack_series(out: Path, name: str, summary: dict) -> None:
     assert [c.type for c in surfaces[0].cells] == ["vertex"]  # no crack at t = 0
     last = surfaces[-1]
     faces = last.cells_dict["triangle"]
-    assert len(faces) == f["crack_faces"]
+    # a face whose other side left with a rigid piece counts in crack_faces (one side left)
+    # but is not in the series, which pairs the two sides of each face
+    pieces = [b for b in summary.get("fragments", {}).get("bodies", []) if b["born"] > 0.0]
+    if pieces:
+        assert 0 < len(faces) < f["crack_faces"]
+    else:
+        assert len(faces) == f["crack_faces"]
     opening = last.cell_data["opening"][0]
     assert opening.shape == (len(faces), 3) and np.all(np.isfinite(opening))
     np.testing.assert_allclose(last.cell_data["opening_norm"][0],
