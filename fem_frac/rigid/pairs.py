@@ -2,7 +2,8 @@
 
 One step ``dt`` of all bodies (:func:`step_all`):
 
-1. broad and narrow phase (:mod:`~fem_frac.rigid.collide`): the pairs of bodies that touch
+1. broad and narrow phase (:mod:`~fem_frac.rigid.collide`; a pair with a body far from
+   convex by its own tets, :mod:`~fem_frac.rigid.nonconvex`): the pairs of bodies that touch
    or may touch within the step (the speculative margin: their relative speed, spin times
    radius, over ``dt``);
 2. islands: bodies joined by touching pairs (fixed bodies join nothing); a body that touches
@@ -31,7 +32,8 @@ once, not for a heap of thousands).
 **Projection** (:func:`separate`): points left inside another body (linear prediction of
 the time of impact, rotation within a step) are separated by translations along the normals,
 the mass-weighted least displacement (the same Gauss-Seidel, at the position level, before
-the drift); velocities are kept, so no kinetic energy is added.
+the drift); velocities are kept, so no kinetic energy is added. The points of a body far
+from convex, touching by its own tets (:mod:`~fem_frac.rigid.nonconvex`), are left out.
 
 **Sleeping**: a sleeping body stays asleep against bodies that rest too (it is then fixed in
 their island); a moving body that reaches it wakes it.
@@ -232,7 +234,8 @@ def resolve_rows(bodies, movable, rows: Rows, dt: float, v_rest: float):
 
 def separate(bodies, movable, rows: Rows) -> list:
     """The bodies translated along the normals, the least mass-weighted displacement that
-    closes every penetration of ``rows`` (gap < 0); momenta kept."""
+    closes every penetration of ``rows`` (gap < 0) that is ``projected`` (not the points of
+    a body touching by its own tets: :mod:`~fem_frac.rigid.nonconvex`); momenta kept."""
     inside = np.flatnonzero((rows.gap < 0.0) & rows.projected)
     if inside.size == 0:
         return list(bodies)
