@@ -64,6 +64,23 @@ def test_petsc_missing_is_a_one_line_error(tmp_path, monkeypatch, capsys):
     assert "scripts/petsc-env.sh" in err
 
 
+@pytest.mark.parametrize("method,package", [("cholmod", "sksparse"), ("pardiso", "pypardiso")])
+def test_a_solver_whose_package_is_missing_is_a_one_line_error(method, package, monkeypatch,
+                                                               capsys):
+    """A solver asked for by name whose package is not installed is refused at check (it
+    was an internal error at run, exit 1): exit 2, one line naming the key and the
+    package."""
+    real = importlib.util.find_spec
+    monkeypatch.setattr(importlib.util, "find_spec",
+                        lambda name, *a: None if name == package else real(name, *a))
+    code = main(["check", str(CASES / "cantilever.yaml"), "--set", "analysis.type=static",
+                 "--set", f"analysis.linear_solver={method}"])
+    err = capsys.readouterr().err
+    assert code == 2
+    assert err.count("\n") == 1 and "Traceback" not in err
+    assert "analysis.linear_solver" in err and f"needs {package}, which is not installed" in err
+
+
 def test_several_ranks_refuse_a_one_rank_solver(monkeypatch):
     """Under ``mpiexec -n 2`` a direct solver that runs on one rank is refused at the key."""
     monkeypatch.setenv("OMPI_COMM_WORLD_SIZE", "2")

@@ -28,11 +28,24 @@ def launched_ranks() -> int:
     return 1
 
 
+# The optional solvers' packages, and how to get them.
+_SOLVER_PACKAGES = {
+    "pardiso": ("pypardiso", "pip install pypardiso (MKL, x86-64 only)"),
+    "cholmod": ("sksparse", "apt install libsuitesparse-dev, then pip install scikit-sparse"),
+}
+
+
 def _solver_here(method: str) -> str:
-    """``petsc`` needs petsc4py; several MPI ranks need a solver that uses them."""
+    """``petsc``, ``pardiso`` and ``cholmod`` need their packages; several MPI ranks need a
+    solver that uses them."""
     if method == "petsc" and importlib.util.find_spec("petsc4py") is None:
         raise ValueError(f"petsc4py is not installed; install it with {PETSC_INSTALL}, or "
                          "use linear_solver: auto")
+    if method in _SOLVER_PACKAGES:
+        package, install = _SOLVER_PACKAGES[method]
+        if importlib.util.find_spec(package) is None:
+            raise ValueError(f"{method} needs {package}, which is not installed ({install}); "
+                             "or use linear_solver: auto")
     ranks = launched_ranks()
     if ranks > 1 and method not in ("auto", "petsc"):
         raise ValueError(f"{method} solves on one rank, and this run has {ranks} MPI ranks; "
