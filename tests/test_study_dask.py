@@ -10,7 +10,6 @@ import shutil
 import signal
 import subprocess
 import sys
-import textwrap
 import time
 from pathlib import Path
 
@@ -23,20 +22,13 @@ distributed = pytest.importorskip("distributed")
 from fem_frac.app.study import remote  # noqa: E402
 from fem_frac.app.study.inputs import run_inputs  # noqa: E402
 from tests.test_study import CASE  # noqa: E402
+from tests.test_study import STUDY as LOCAL_STUDY  # noqa: E402
 
 REPO = Path(__file__).resolve().parents[1]
 
-STUDY = textwrap.dedent(
-    """\
-    title: tiny cantilever
-    case: beam.yaml
-    method: [mesh.order]
-    grid:
-      mesh.order: [1]
-      mesh.element_size: [0.2, 0.14, 0.098]
-    error: reference
-    """
-)
+# the study of tests/test_study.py without its thread count (a cluster's are its workers')
+STUDY = LOCAL_STUDY.replace("workers: 2\n", "")
+assert STUDY != LOCAL_STUDY
 
 # A run that is refused (exit 2: Poisson's ratio over 0.5) and one that fails numerically
 # (exit 3: E = 1e-300, its matrix cannot be factorized), beside one that completes.
