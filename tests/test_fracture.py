@@ -272,6 +272,13 @@ def test_a_loose_piece_stops_a_static_run_with_a_clear_message(tmp_path, capsys)
      "fracture.protect[0].boundary", "no boundary 'nope'"),
     ({"tensile_strength": 1e6, "smoothing": {"rings": 1}, "passes": 0},
      "fracture.passes", "must be >= 1"),
+    ({"tensile_strength": 1e6, "smoothing": {"rings": 1},
+      "protect": [{"vertices": {"min": [5, 5, 5], "max": [6, 6, 6]}}]},
+     "fracture.protect[0].vertices", "holds no vertex"),
+    ({"tensile_strength": 1e6, "smoothing": {"rings": 1},
+      "protect": [{"vertices": {"min": [0, 0, 0], "max": [1, 1, 1]},
+                   "box": {"min": [0, 0, 0], "max": [1, 1, 1]}}]},
+     "fracture.protect[0]", "exactly one of"),
 ])
 def test_bad_fracture_sections_are_located(tmp_path, capsys, section, key, message):
     from fem_frac.app.cli import main
@@ -283,6 +290,23 @@ def test_bad_fracture_sections_are_located(tmp_path, capsys, section, key, messa
     err = capsys.readouterr().err.strip()
     assert err.startswith(f"error: {path}:") and key in err and message in err
     assert len(err.splitlines()) == 1
+
+
+def test_protect_vertices_takes_exactly_the_vertices_in_the_box_and_box_its_tets():
+    """``vertices`` protects the vertices inside the box and nothing else; ``box`` protects
+    every vertex of the tets centred in it, which reach beyond it."""
+    from fem_frac.config.schema.fracture import Fracture
+    from fem_frac.fracture.stage import protected_vertices
+    from meshes import structured_box
+
+    mesh = structured_box((4, 2, 2), lengths=(4.0, 1.0, 1.0))
+    box = {"min": [-1, -1, -1], "max": [2.4, 2, 2]}
+    by_vertex = protected_vertices(Fracture(tensile_strength=1.0, smoothing={"rings": 1},
+                                            protect=[{"vertices": box}]), mesh)
+    np.testing.assert_array_equal(by_vertex, mesh.points[:, 0] <= 2.4)
+    by_tet = protected_vertices(Fracture(tensile_strength=1.0, smoothing={"rings": 1},
+                                         protect=[{"box": box}]), mesh)
+    assert by_tet[by_vertex].all() and (mesh.points[by_tet, 0] > 2.4).any()
 
 
 def test_quadratic_bar_breaks_in_the_same_step():

@@ -91,6 +91,35 @@ def test_vertices_on_a_crack_are_preferred():
     assert again.elements[0] == e and again.vertices[0] == other
 
 
+def test_a_cohesive_crack_starts_at_the_most_stressed_vertex():
+    """With ``peak_first`` (cohesive cracks), a new crack splits the vertex of the element
+    whose tets are the most stressed on average, not the one nearest the plane through the
+    centroid; without it (brittle) the nearest plane still decides."""
+    mesh = structured_box((4, 3, 3), distortion=0.1, seed=5)
+    direction = np.tile(np.array([1.0, 0.5, 0.3]) / np.linalg.norm([1.0, 0.5, 0.3]),
+                        (mesh.n_tets, 1))
+    lookups = star(mesh.tets, mesh.n_points)
+    c = mesh.points[mesh.tets].mean(axis=1)
+    good = np.array([sum(splits(mesh.points, mesh.tets, c, lookups, v, direction[e])
+                         for v in mesh.tets[e]) for e in range(mesh.n_tets)])
+    e = int(np.flatnonzero(good >= 2)[0])
+    candidates = [v for v in mesh.tets[e]
+                  if splits(mesh.points, mesh.tets, c, lookups, v, direction[e])]
+    distance = np.abs((mesh.points[candidates] - c[e]) @ direction[e])
+    nearest = candidates[int(np.argmin(distance))]
+    peak = next(v for v in candidates if v != nearest)
+    # the tets around `peak` carry a stress just under the strength, the rest nothing
+    sigma1 = np.zeros(mesh.n_tets)
+    sigma1[np.any(mesh.tets == peak, axis=1)] = 0.9 * STRENGTH
+    sigma1[e] = 2.0
+    assert _select(mesh, sigma1, direction, 1).vertices[0] == nearest
+    s = smoothing_operator(mesh.points, mesh.tets, rings=1)
+    none = np.zeros(mesh.n_points, bool)
+    cohesive = select_sites(mesh.points, mesh.tets, sigma1, direction, STRENGTH, s, none,
+                            none, 1, front=none, peak_first=True)
+    assert cohesive.elements[0] == e and cohesive.vertices[0] == peak
+
+
 def test_a_split_that_would_shed_loose_tets_is_refused():
     """At a vertex on the surface a plane can cut off tets whose faces away from the vertex
     are all exterior: such a split would shed loose debris, not open a crack across the

@@ -17,7 +17,12 @@ element's vertices. The rules, all deterministic:
   (:func:`~fem_frac.fracture.front.crack_front`), an element near a crack
   (:func:`~fem_frac.fracture.front.near_crack`) splits only at a front vertex, or not at
   all, so a crack extends from its own front rather than into a band beside or behind it;
-  front vertices come first, then vertices on a crack, then the nearest plane.
+  front vertices come first, then vertices on a crack, then the nearest plane;
+- cohesive cracks also try, after the vertices on a crack, the most stressed vertex (the
+  mean smoothed ``sigma1`` of its tets) before the nearest plane: a crack starts at the
+  stress peak an element samples (a notch root, at the element's vertex on it), not at
+  whichever vertex happens to lie nearest the plane through the element's centroid; on a
+  mesh whose elements are as large as the process zone the two differ by an element.
 """
 
 from __future__ import annotations
@@ -161,13 +166,25 @@ def two_sided(points: np.ndarray, centroids: np.ndarray, incidence: sp.csr_matri
 
 def _preference(points: np.ndarray, centroid: np.ndarray, normal: np.ndarray,
                 corners: np.ndarray, on_crack: np.ndarray,
-                front: np.ndarray | None) -> np.ndarray:
+                front: np.ndarray | None, peak: np.ndarray | None = None) -> np.ndarray:
     """The order in which an element's ``corners (4,)`` are tried: front vertices first
-    (when ``front`` is given), then vertices on a crack, then the plane closest to the
-    ``centroid``, then the lower id."""
+    (when ``front`` is given), then vertices on a crack, then (when ``peak (n,)`` is
+    given) the most stressed vertex, then the plane closest to the ``centroid``, then the
+    lower id."""
     distance = np.abs((points[corners] - centroid) @ normal)
-    keys = (corners, distance, ~on_crack[corners])
+    keys = (corners, distance)
+    if peak is not None:
+        keys = (*keys, -peak[corners])
+    keys = (*keys, ~on_crack[corners])
     return np.lexsort(keys if front is None else (*keys, ~front[corners]))
+
+
+def vertex_stress(incidence: sp.csr_matrix, sigma1: np.ndarray) -> np.ndarray:
+    """``(n,)``: the mean smoothed largest principal stress ``sigma1 (m,)`` of the tets
+    around each vertex (``incidence`` from :func:`vertex_tets`)."""
+    count = np.asarray(incidence.sum(axis=1)).ravel()
+    total = incidence @ np.asarray(sigma1, dtype=float)
+    return np.divide(total, count, out=np.zeros_like(total), where=count > 0)
 
 
 def _allowed(points: np.ndarray, centroids: np.ndarray, lookups: Star, corners: np.ndarray,
@@ -189,7 +206,7 @@ def select_sites(points: np.ndarray, tets: np.ndarray, sigma1: np.ndarray,
                  direction: np.ndarray, strength: float, neighbourhood: sp.csr_matrix,
                  on_crack: np.ndarray, protected: np.ndarray, limit: int,
                  lookups: Star | None = None, front: np.ndarray | None = None,
-                 near: np.ndarray | None = None) -> Sites:
+                 near: np.ndarray | None = None, peak_first: bool = False) -> Sites:
     """The batch of at most ``limit`` sites (module docstring).
 
     ``points (n, 3)``, ``tets (m, 4)`` reference mesh; ``sigma1 (m,)``, ``direction (m, 3)``
@@ -198,7 +215,9 @@ def select_sites(points: np.ndarray, tets: np.ndarray, sigma1: np.ndarray,
     ``lookups`` the :func:`star` of the mesh (made here when not given). ``front (n,)``
     bool per vertex turns on growth along fronts, with ``near (m,)`` bool per tet (the
     tets near a crack; when not given, those whose neighbourhood holds an ``on_crack``
-    vertex); without ``front``, ``near`` is ignored.
+    vertex); without ``front``, ``near`` is ignored. ``peak_first``: of an element's
+    vertices, the most stressed one (:func:`vertex_stress`) is tried before the plane
+    nearest its centroid (the rule for cohesive cracks, module docstring).
     """
     tets = np.asarray(tets, dtype=np.int64)
     empty = Sites(np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros((0, 3)), np.zeros(0))
@@ -209,6 +228,7 @@ def select_sites(points: np.ndarray, tets: np.ndarray, sigma1: np.ndarray,
     if front is not None and near is None:
         near = near_marked(tets, neighbourhood, on_crack)
     centroids = points[tets].mean(axis=1)
+    peak = vertex_stress(lookups.incidence, sigma1) if peak_first else None
     candidates = candidates[np.lexsort((candidates, -sigma1[candidates]))]
     pattern = neighbourhood.tocsr()
     claimed = np.zeros(tets.shape[0], dtype=bool)
@@ -226,7 +246,8 @@ def select_sites(points: np.ndarray, tets: np.ndarray, sigma1: np.ndarray,
             if claimed[e]:
                 continue
             n = direction[e]
-            preference = _preference(points, centroids[e], n, corners[i], on_crack, front)
+            preference = _preference(points, centroids[e], n, corners[i], on_crack, front,
+                                     peak)
             for j in preference.tolist():
                 v = int(corners[i, j])
                 if (not cut[i, j] or used[v]

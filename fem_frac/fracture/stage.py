@@ -94,6 +94,13 @@ def protected_vertices(config: schema.Fracture, mesh: Mesh, strict: bool = True)
                                 f"the mesh has no boundary {p.boundary!r} (groups: {known})")
             mask[np.asarray(mesh.boundaries[p.boundary]).ravel()] = True
             continue
+        if p.vertices is not None:
+            inside = np.all((mesh.points >= np.asarray(p.vertices.min))
+                            & (mesh.points <= np.asarray(p.vertices.max)), axis=1)
+            if strict and not inside.any():
+                raise CaseError(("fracture", "protect", i, "vertices"), "holds no vertex")
+            mask |= inside
+            continue
         if p.box is not None and centroids is None:
             centroids = mesh.points[mesh.tets].mean(axis=1)
         tets = selected_elements(mesh, p.subdomain, p.box, ("fracture", "protect", i),
@@ -318,7 +325,8 @@ class FractureStage:
         return select_sites(mesh.points, mesh.tets, sigma1, direction,
                             self.config.tensile_strength, topo.smoothing, topo.on_crack,
                             topo.protected | topo.refused, limit, topo.star,
-                            front=topo.front, near=topo.near)
+                            front=topo.front, near=topo.near,
+                            peak_first=self.config.fracture_energy is not None)
 
     def open(self, topo: _Topology, n_pieces: int, sites: Sites):
         """Open ``sites`` on ``topo.mesh``: ``(sites kept, new mesh, transfer, dropped

@@ -39,16 +39,20 @@ class Perturbation(Section):
 
 class Protect(Section):
     """Where no crack may open: the vertices of a named boundary, of a mesh volume group
-    (``subdomain``) or of the elements whose centroid lies in ``box``."""
+    (``subdomain``) or of the elements whose centroid lies in ``box``, or the vertices that
+    lie in the box ``vertices`` (bounds included; unlike ``box`` it protects nothing
+    outside it, so a mesh surface just outside it stays free to open)."""
 
     boundary: str | None = None
     subdomain: str | None = None
     box: BoxSelection | None = None
+    vertices: BoxSelection | None = None
 
     @model_validator(mode="after")
     def _one(self):
-        if sum(x is not None for x in (self.boundary, self.subdomain, self.box)) != 1:
-            raise ValueError("give exactly one of 'boundary', 'subdomain' or 'box'")
+        given = (self.boundary, self.subdomain, self.box, self.vertices)
+        if sum(x is not None for x in given) != 1:
+            raise ValueError("give exactly one of 'boundary', 'subdomain', 'box' or 'vertices'")
         return self
 
 
