@@ -152,14 +152,17 @@ def _friction_impulse(k, f, radius):
     (maximum dissipation). A radial clamp of the sticking impulse, or friction along ``-f``,
     misses this minimum when ``k`` is anisotropic and stalls Gauss-Seidel short of sticking.
     """
-    # 2 x 2 by hand: numpy.linalg's per-call overhead is most of a contact step otherwise
-    (k00, k01), (k10, k11) = k
+    # the sticking impulse, 2 x 2 by hand in Python floats: numpy's per-call overhead is
+    # most of a contact step otherwise (the same operations as on numpy scalars, so the
+    # same bits)
+    (k00, k01), (k10, k11) = k.tolist()
+    f0, f1 = float(f[0]), float(f[1])
     det = k00 * k11 - k01 * k10
-    x = np.array([k01 * f[1] - k11 * f[0], k10 * f[0] - k00 * f[1]]) / det
-    if x[0] * x[0] + x[1] * x[1] <= radius * radius:
-        return x
+    x0, x1 = (k01 * f1 - k11 * f0) / det, (k10 * f0 - k00 * f1) / det
+    if x0 * x0 + x1 * x1 <= radius * radius:
+        return x0, x1
     if radius <= 0.0:
-        return np.zeros(2)
+        return 0.0, 0.0
     # secular equation |(k + sigma)^-1 f| = radius; Newton on 1/|x(sigma)| - 1/radius, which
     # is nearly linear in sigma, converges from sigma = 0 monotonically (More & Sorensen 1983)
     w, q = np.linalg.eigh(k)
