@@ -79,13 +79,12 @@ def hill_sphere_plastic_radius(
     pressure: float, inner_radius: float, outer_radius: float, yield_stress: float
 ) -> float:
     """Radius c of the plastic zone under internal ``pressure`` p: the root of
-    ``hill_sphere_pressure(c) = p`` on [a, b] (Brent's method, to 1e-14 relative).
+    ``hill_sphere_pressure(c) = p`` on [a, b] (Newton safeguarded by bisection, to round-off;
+    scipy.optimize would cost a run 0.1 s of imports for this one root).
 
     Returns ``a`` (no plastic zone) for ``p <= p_e``; raises ``ValueError`` for
     ``p >= p_L`` (no equilibrium: the whole wall flows).
     """
-    from scipy.optimize import brentq
-
     a, b, s = inner_radius, outer_radius, yield_stress
     p_e = hill_sphere_pressure(a, a, b, s)
     p_l = hill_sphere_pressure(b, a, b, s)
@@ -95,8 +94,24 @@ def hill_sphere_plastic_radius(
         raise ValueError(
             f"pressure {pressure:g} is at or above the limit load {p_l:g} = 2 sigma_Y ln(b/a)"
         )
-    return float(brentq(lambda c: hill_sphere_pressure(c, a, b, s) - pressure, a, b,
-                        xtol=1e-14 * b, rtol=1e-14))
+    lo, hi, c = float(a), float(b), 0.5 * (a + b)
+    for _ in range(200):
+        residual = float(hill_sphere_pressure(c, a, b, s)) - pressure
+        if residual == 0.0:
+            break
+        if residual > 0.0:
+            hi = c
+        else:
+            lo = c
+        slope = 2.0 * s * (1.0 / c - c**2 / b**3)  # dp/dc > 0 inside (a, b)
+        new = c - residual / slope
+        if not lo < new < hi:
+            new = 0.5 * (lo + hi)
+        tiny = 4.0 * np.finfo(float).eps * b
+        c, step = new, abs(new - c)
+        if step <= tiny or hi - lo <= tiny:
+            break
+    return float(c)
 
 
 def hill_sphere_outer_displacement(
