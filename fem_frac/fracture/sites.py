@@ -202,6 +202,10 @@ def _allowed(points: np.ndarray, centroids: np.ndarray, lookups: Star, corners: 
     return cut
 
 
+def _no_sites() -> Sites:
+    return Sites(np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros((0, 3)), np.zeros(0))
+
+
 def select_sites(points: np.ndarray, tets: np.ndarray, sigma1: np.ndarray,
                  direction: np.ndarray, strength: float, neighbourhood: sp.csr_matrix,
                  on_crack: np.ndarray, protected: np.ndarray, limit: int,
@@ -215,15 +219,13 @@ def select_sites(points: np.ndarray, tets: np.ndarray, sigma1: np.ndarray,
     ``lookups`` the :func:`star` of the mesh (made here when not given). ``front (n,)``
     bool per vertex turns on growth along fronts, with ``near (m,)`` bool per tet (the
     tets near a crack; when not given, those whose neighbourhood holds an ``on_crack``
-    vertex); without ``front``, ``near`` is ignored. ``peak_first``: of an element's
-    vertices, the most stressed one (:func:`vertex_stress`) is tried before the plane
-    nearest its centroid (the rule for cohesive cracks, module docstring).
+    vertex); without ``front``, ``near`` is ignored. ``peak_first``: the most stressed
+    vertex (:func:`vertex_stress`) before the nearest plane (cohesive cracks).
     """
     tets = np.asarray(tets, dtype=np.int64)
-    empty = Sites(np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros((0, 3)), np.zeros(0))
     candidates = np.flatnonzero(sigma1 > strength)
     if candidates.size == 0 or limit <= 0:
-        return empty
+        return _no_sites()
     lookups = lookups if lookups is not None else star(tets, points.shape[0])
     if front is not None and near is None:
         near = near_marked(tets, neighbourhood, on_crack)
@@ -231,8 +233,7 @@ def select_sites(points: np.ndarray, tets: np.ndarray, sigma1: np.ndarray,
     peak = vertex_stress(lookups.incidence, sigma1) if peak_first else None
     candidates = candidates[np.lexsort((candidates, -sigma1[candidates]))]
     pattern = neighbourhood.tocsr()
-    claimed = np.zeros(tets.shape[0], dtype=bool)
-    used = np.zeros(points.shape[0], dtype=bool)
+    claimed, used = np.zeros(tets.shape[0], dtype=bool), np.zeros(points.shape[0], dtype=bool)
     chosen: list[tuple[int, int]] = []
     chunk = max(CHUNK, 8 * limit)
     for begin in range(0, candidates.size, chunk):
@@ -246,9 +247,8 @@ def select_sites(points: np.ndarray, tets: np.ndarray, sigma1: np.ndarray,
             if claimed[e]:
                 continue
             n = direction[e]
-            preference = _preference(points, centroids[e], n, corners[i], on_crack, front,
-                                     peak)
-            for j in preference.tolist():
+            for j in _preference(points, centroids[e], n, corners[i], on_crack, front,
+                                 peak).tolist():
                 v = int(corners[i, j])
                 if (not cut[i, j] or used[v]
                         or not splits(points, tets, centroids, lookups, v, n)):
@@ -263,6 +263,6 @@ def select_sites(points: np.ndarray, tets: np.ndarray, sigma1: np.ndarray,
         if len(chosen) == limit:
             break
     if not chosen:
-        return empty
+        return _no_sites()
     elements, vertices = (np.array(c, dtype=np.int64) for c in zip(*chosen, strict=True))
     return Sites(elements, vertices, direction[elements].copy(), sigma1[elements].copy())
