@@ -9,7 +9,7 @@ them: selection (``stage.sites``, the smoothed principal stress computed afresh)
 rebuild (``world.transfer.rediscretize``: space, loads, operators, constrained dofs and
 stepper), caches (``stage._updated``: ``update_operator`` and the other per-mesh caches of
 ``_topology``), carry (``world.transfer.carry``), the new body (``body_of``: crack
-measures), support check (``_check_supports``), refactorization (the new stepper's first
+measures), support check (``stage.loose``), refactorization (the new stepper's first
 ``elastic_factor()``), the re-solve step, and the field the stage publishes for the
 re-solved state (``stage.principal`` on the new mesh). Each piece: best of ``--repeats``,
 each call from cold caches (a 64 MiB buffer written first, as in plastic_step.py);
@@ -166,7 +166,7 @@ def one(n_tets: int, repeats: int) -> dict:
     from fem_frac.app.driver import prepare, start, times
     from fem_frac.config.schema import Case
     from fem_frac.fracture.smoothing import principal_stress, smooth, update_operator
-    from fem_frac.fracture.stage import FractureStage, _check_supports, smoothing_of
+    from fem_frac.fracture.stage import FractureStage, smoothing_of
     from fem_frac.fracture.topology import open_crack
     from fem_frac.timing import StageTimer
     from fem_frac.world.equilibrium import EquilibriumStage
@@ -270,7 +270,7 @@ def one(n_tets: int, repeats: int) -> dict:
         lambda: carry(s1, disc, new_disc, transfer, stage.inertia), repeats)
     p["body (body_of)"], new_body = best(
         lambda: body_of(new_disc, carried, pieces=pieces), repeats)
-    p["support check"], _ = best(lambda: _check_supports(new_body, 2), repeats)
+    p["support check"], _ = best(lambda: stage.loose(new_body, 2), repeats)
 
     def refactor():
         new_disc.stepper.factor = None
