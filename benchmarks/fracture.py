@@ -27,82 +27,9 @@ batch follows step 2, carrying the committed state of step 1. One subprocess per
     python benchmarks/fracture.py                       # 10k and 100k tets, best of 3
     python benchmarks/fracture.py --sizes 10000 --repeats 5
 
-Measured 2026-12-01 on the machine and software of docs/performance.md (2 cores), quiet;
-after sites are tested lazily (blocks in decreasing stress) and ``free_rigid_modes`` works
-on the 6 x 6 triangular factor. Cells: time, in floors, in plain steps.
-
-The figures are those of the fracture stage before it worked on a world (not rerun since):
-its caches were ``stage._prepare``, which also labelled the pieces (connected components)
-and measured the cracks; the pieces now come from the debris check of ``open`` and the
-crack measures from ``body_of``. The rows body and field were not separate pieces then
-(-); the field was computed for the output, outside the batch, so the batch end to end and
-the sum of the pieces now hold one more smoothed principal stress (the selection's cell
-average, smoothing and eigen-decomposition: ~3 floors at 10k, ~2 at 100k).
-
-| (time, /floor, /step) | 10,669 tets | 94,187 tets |
-|---|---|---|
-| dofs, smoothing nnz/row | 7,767, 55 | 56,484, 55 |
-| sites / new vertices | 8 / 13 | 8 / 14 |
-| iterations: step / re-solve | 1 / 1 | 1 / 1 |
-| peak MiB | 387 | 2,199 |
-| initial smoothing operator | 210.8 ms, 59, 51 | 2.12 s, 48, 45 |
-| **floor** | 3.6 ms, 1.00, 0.87 | 44.6 ms, 1.00, 0.95 |
-| - back-solve | 1.7 ms, 0.48, 0.42 | 31.6 ms, 0.71, 0.67 |
-| - strain | 0.7 ms, 0.19, 0.16 | 4.9 ms, 0.11, 0.10 |
-| - law.update | 0.3 ms, 0.09, 0.08 | 2.3 ms, 0.05, 0.05 |
-| - internal force | 0.8 ms, 0.24, 0.21 | 5.7 ms, 0.13, 0.12 |
-| **plain step** | 4.1 ms, 1.15, 1.00 | 47.1 ms, 1.06, 1.00 |
-| **selection** | 14.3 ms, 4.0, 3.5 | 101.8 ms, 2.3, 2.2 |
-| - cell average | 0.3 ms, 0.1, 0.1 | 2.0 ms, 0.0, 0.0 |
-| - smoothing S @ sigma | 1.6 ms, 0.5, 0.4 | 19.8 ms, 0.4, 0.4 |
-| - eigen-decomposition | 7.9 ms, 2.2, 1.9 | 64.1 ms, 1.4, 1.4 |
-| - site choice | 4.5 ms, 1.3, 1.1 | 16.0 ms, 0.4, 0.3 |
-| **open (stage.open)** | 31.9 ms, 8.9, 7.8 | 342.6 ms, 7.7, 7.3 |
-| - open_crack | 23.3 ms, 6.5, 5.7 | 231.9 ms, 5.2, 4.9 |
-| - debris check | 8.7 ms, 2.4, 2.1 | 110.6 ms, 2.5, 2.4 |
-| **rebuild (rediscretize)** | 104.0 ms, 29.1, 25.3 | 1.06 s, 23.7, 22.4 |
-| - space | 3.6 ms, 1.0, 0.9 | 32.8 ms, 0.7, 0.7 |
-| - loads | 62.5 ms, 17.5, 15.2 | 574.2 ms, 12.9, 12.2 |
-| - operators | 35.1 ms, 9.8, 8.5 | 422.4 ms, 9.5, 9.0 |
-| - constrained, stepper | 2.7 ms, 0.8, 0.7 | 27.2 ms, 0.6, 0.6 |
-| **caches (stage._updated)** | 81.3 ms, 22.7, 19.8 | 534.4 ms, 12.0, 11.4 |
-| - update_operator | 58.8 ms, 16.4, 14.3 | 312.5 ms, 7.0, 6.6 |
-| - other caches | 22.5 ms, 6.3, 5.5 | 221.8 ms, 5.0, 4.7 |
-| **carry (transfer.carry)** | 1.2 ms, 0.3, 0.3 | 7.7 ms, 0.2, 0.2 |
-| **body (body_of)** | - | - |
-| **support check** | 0.8 ms, 0.2, 0.2 | 3.4 ms, 0.1, 0.1 |
-| **refactorization** | 43.8 ms, 12.2, 10.7 | 946.5 ms, 21.2, 20.1 |
-| **re-solve step** | 3.9 ms, 1.1, 1.0 | 46.9 ms, 1.1, 1.0 |
-| **field (stage.principal)** | - | - |
-| **selection, right after a batch** | 14.6 ms, 4, 4 | 101.5 ms, 2, 2 |
-| **batch (sum of pieces)** | 281.3 ms, 79, 68 | 3.04 s, 68, 65 |
-| **batch warm** | 278.2 ms, 78, 68 | 3.12 s, 70, 66 |
-| **batch cold** | 341.6 ms, 95, 83 | 3.28 s, 74, 70 |
-
-Reading:
-
-- **A batch costs ~70-80 floors (~65-70 plain steps) at both sizes**, the first of a run
-  75-95. Almost every piece is a pass over the whole mesh, so the ratio does not fall with
-  size. The initial smoothing operator (once per run) is ~50 floors; ``update_operator``
-  3-7x less.
-- At 100k: rebuild 24 floors (loads 13: skfem's facet entities rebuilt to find the named
-  boundaries, and the facet bases of the loads; operators 9.5: ``B^T D B``),
-  refactorization 21 (PARDISO analysis and numeric phases on the new pattern), caches 12
-  (face adjacency built twice, in ``update_operator`` and ``star``; the merge of the
-  5M-entry operator), open 8 (``open_crack`` 5, the debris check's fragments 2.5),
-  selection 2. At 10k: rebuild 29, caches 23, refactorization 12, open 9, selection 4.
-  Carry and re-solve: ~1 floor.
-- Before the two fixes above the batch was ~105-115 floors: the vectorized two-sided test
-  ran over every (over-strength element, corner) pair (here all elements are over) for 8
-  sites (15 floors), and the support check's SVD built a (constrained dofs)^2 matrix (4.5).
-- Next, by gain for effort: (1) carry the loads and constrained dofs through ``node_map``
-  instead of ``build_problem`` (a nodal force must then be split among the copies by the
-  facets each now holds), and reassemble K from cached element matrices (elements are not
-  cut): ~20 floors; (2) one face adjacency per batch, updated near the splits, for
-  ``update_operator``, ``star`` and the debris check; (3) the new matrix is the old one
-  changed near <= 14 new vertices: PCG preconditioned by the old factor (a few
-  back-solves) could replace the refactorization (12-21 floors) per pass, refactorizing
-  once per step.
+The measured table and its reading are in docs/performance.md ("One crack-insertion batch
+against a plain step"); ``tests/test_benchmark_fracture.py`` runs this script on a small bar
+so that it keeps up with the code it times.
 """
 
 from __future__ import annotations
