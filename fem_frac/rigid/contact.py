@@ -144,7 +144,8 @@ def _jacobian(contacts: Contacts) -> np.ndarray:
 
 
 def _friction_impulse(k, f, radius):
-    """(2,) tangential impulse ``x`` minimizing ``x.k.x / 2 + f.x`` over ``|x| <= radius``.
+    """The tangential impulse ``x`` (two numbers) minimizing ``x.k.x / 2 + f.x`` over
+    ``|x| <= radius``.
 
     k: (2, 2) tangential effective mass (inverse), SPD; f: (2,) tangential velocity without
     this friction: the kinetic energy over the Coulomb disc. Inside, the point sticks; on the
