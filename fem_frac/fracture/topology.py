@@ -21,6 +21,7 @@ Deterministic: the same input gives identical arrays (stable sorts, no hash orde
 
 from __future__ import annotations
 
+import hashlib
 from dataclasses import dataclass
 
 import numpy as np
@@ -85,15 +86,36 @@ def identity_transfer(n_points: int, n_tets: int) -> Transfer:
 # --------------------------------------------------------------------------- faces
 
 
+# The matched faces of the last few connectivities: a crack-insertion batch asks for those
+# of its new mesh four times (debris check, smoothing update, site lookups), each a sort of
+# every face of every tet.
+_PAIRS: dict[tuple, tuple] = {}
+_PAIRS_KEPT = 2
+
+
 def _face_pairs(tets: np.ndarray):
     """Matched faces of ``tets``: rows ``r1, r2`` (face row ``r`` is face ``r % 4`` of tet
     ``r // 4``) that hold the same vertex set, and the local corners ``(k, 3)`` of each,
     listed in increasing global vertex id so that column ``j`` is the same vertex in both.
 
     A face held by more than two tets (non-manifold input) yields a chain of pairs, which
-    is enough for connectivity.
+    is enough for connectivity. Kept for the last connectivities asked (by content: a
+    hash of the tets), read-only.
     """
-    tets = np.asarray(tets, dtype=np.int64)
+    tets = np.ascontiguousarray(tets, dtype=np.int64)
+    key = (tets.shape, hashlib.blake2b(tets.data, digest_size=16).digest())
+    if key not in _PAIRS:
+        while len(_PAIRS) >= _PAIRS_KEPT:
+            _PAIRS.pop(next(iter(_PAIRS)))
+        pairs = _match_faces(tets)
+        for array in pairs:
+            array.flags.writeable = False
+        _PAIRS[key] = pairs
+    return _PAIRS[key]
+
+
+def _match_faces(tets: np.ndarray):
+    """:func:`_face_pairs`, computed."""
     m = tets.shape[0]
     glob = tets[:, TET_FACES].reshape(-1, 3)
     local = np.broadcast_to(TET_FACES, (m, 4, 3)).reshape(-1, 3)
