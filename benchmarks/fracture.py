@@ -175,7 +175,7 @@ def one(n_tets: int, repeats: int) -> dict:
     def rebuild():
         bt.seconds.clear()
         with bt("fracture rebuild"):
-            out = rediscretize(disc, new_mesh, bt, "after crack insertion")
+            out = rediscretize(disc, new_mesh, bt, "after crack insertion", transfer)
         builds.append(dict(bt.seconds))
         return out
 

@@ -214,7 +214,8 @@ class FractureStage:
             if mesh is None:
                 continue
             with self.timer("fracture rebuild"):
-                disc = rediscretize(body.disc, mesh, self.timer, "after crack insertion")
+                disc = rediscretize(body.disc, mesh, self.timer, "after crack insertion",
+                                    transfer)
             topo = self._updated(topo, mesh, body.mesh.points[sites.vertices])
             start = carry(start, body.disc, disc, transfer, self.inertia)
             new = body_of(disc, start, pieces=pieces)

@@ -78,16 +78,19 @@ class Discretization:
 
 
 def discretize(recipe: Recipe, mesh: Mesh, timer: StageTimer, strict: bool = True,
-               log: Log = quiet) -> Discretization:
+               log: Log = quiet, previous: tuple | None = None) -> Discretization:
     """The discretization of ``mesh`` (factorization deferred to the first step).
     ``strict=False`` lets a condition whose faces left with a rigid piece act on nothing
-    (named groups follow the faces they named through crack insertion)."""
+    (named groups follow the faces they named through crack insertion). ``previous``:
+    ``(discretization, node_map)`` of the mesh a crack insertion made this one from, whose
+    operators are then updated rather than rebuilt where that is exact
+    (:mod:`fem_frac.fem.reconnect`)."""
     space, materials, problem = model_on(recipe, mesh, timer, strict)
     if strict:
         check_model(recipe, space, materials, problem)
     # per-element properties follow the elements
     law = material_law(materials, recipe.plasticity)
-    ops = build_operators(recipe, space, materials, law, timer)
+    ops = build_operators(recipe, space, materials, law, timer, previous)
     constrained = Constrained(problem, recipe.analysis.linear_solver,
                               recipe.analysis.petsc)
     limit = None
@@ -105,6 +108,22 @@ def discretize(recipe: Recipe, mesh: Mesh, timer: StageTimer, strict: bool = Tru
                                   recipe.analysis.equilibrium, constrained)
     return Discretization(recipe, mesh, space, problem, materials, law, ops, constrained,
                           stepper, limit)
+
+
+def _reconnected(recipe: Recipe, space: Space, tangent: np.ndarray, previous: tuple | None):
+    """``(strain operator, stiffness)`` of ``space`` from the ``previous`` discretization's
+    (:mod:`fem_frac.fem.reconnect`), or ``None`` where that does not apply: quadratic tets,
+    the averaged formulation, or a mesh that is not the old one reconnected."""
+    from ..fem.reconnect import changed_tets, reconnect
+
+    if previous is None or recipe.order != 1 or recipe.formulation != "standard":
+        return None
+    old, node_map = previous
+    changed = changed_tets(old.mesh.tets, space.mesh.tets, node_map)
+    if changed is None or old.ops.strain_operator.formulation != "standard":
+        return None
+    return reconnect(old.ops.strain_operator, old.ops.stiffness, tangent, space,
+                     np.asarray(old.mesh.tets), np.asarray(space.mesh.tets), changed)
 
 
 def _initial_cohesive_stiffness(ops: Operators) -> sp.csr_matrix | None:
@@ -148,17 +167,23 @@ def check_model(recipe: Recipe, space: Space, materials: ElementMaterials,
 
 
 def build_operators(recipe: Recipe, space: Space, materials: ElementMaterials,
-                    law: MaterialLaw, timer: StageTimer) -> Operators:
-    """Strain operator and elastic stiffness; mass and damping when the analysis is
+                    law: MaterialLaw, timer: StageTimer,
+                    previous: tuple | None = None) -> Operators:
+    """Strain operator and elastic stiffness (updated from ``previous``, see
+    :func:`discretize`, where that is exact); mass and damping when the analysis is
     dynamic; the cohesive crack faces when cracks carry a fracture energy."""
     from ..fem.operators import strain_operator
 
     with timer("assemble"):
-        op = strain_operator(space, recipe.formulation)
         d = law.elastic_tangent
         if d.ndim == 4:  # per element: one value for every quadrature point
-            d = np.ascontiguousarray(np.broadcast_to(d, (6, 6) + op.weights.shape))
-        k = op.stiffness(d)
+            d = np.ascontiguousarray(np.broadcast_to(d, (6, 6) + space.basis.dx.shape))
+        reused = _reconnected(recipe, space, d, previous)
+        if reused is not None:
+            op, k = reused
+        else:
+            op = strain_operator(space, recipe.formulation)
+            k = op.stiffness(d)
     mass = damping = None
     if recipe.dynamic:
         from ..fem.mass import consistent_mass, lumped_mass

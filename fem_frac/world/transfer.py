@@ -39,13 +39,16 @@ def carry(state: State, old: Discretization, new: Discretization, transfer: Tran
                  reaction(ops, fixed, f_int, f_ext, v, a), cohesive)
 
 
-def rediscretize(disc: Discretization, mesh, timer, why: str) -> Discretization:
+def rediscretize(disc: Discretization, mesh, timer, why: str,
+                 transfer: Transfer | None = None) -> Discretization:
     """``disc``'s recipe on ``mesh``, a mesh a topology change made (``why``, for the
-    message): a support or load whose faces all left acts on nothing there."""
+    message): a support or load whose faces all left acts on nothing there. ``transfer``:
+    given for a crack insertion, whose operators are updated from ``disc``'s."""
     from ..errors import CaseError, SolverError
     from ..solve.discretization import discretize
 
+    previous = (disc, transfer.node_map) if transfer is not None else None
     try:
-        return discretize(disc.recipe, mesh, timer, strict=False)
+        return discretize(disc.recipe, mesh, timer, strict=False, previous=previous)
     except CaseError as exc:
         raise SolverError(f"{why}: {exc.message}") from None

@@ -1,0 +1,71 @@
+"""Operators of a cracked mesh updated from the old ones (fem_frac.fem.reconnect) against a
+fresh assembly: B the same bits, K the same values to round-off and the same pattern."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from fem_frac.fem.operators import strain_operator
+from fem_frac.fem.reconnect import changed_tets, reconnect
+from fem_frac.fem.space import build_space
+from fem_frac.fem.tensors import isotropic_tangent
+from fem_frac.fracture import open_crack
+from meshes import structured_box
+
+D = isotropic_tangent(210e9, 0.3)
+
+
+def _cracked(distortion):
+    """A distorted box and the same box cracked at the plane x = 0.5 over y < 0.6
+    (normal x), twice over: the second insertion acts on the first one's mesh."""
+    mesh = structured_box((4, 4, 4), distortion=distortion, seed=3)
+    p = mesh.points
+    first = np.flatnonzero((np.abs(p[:, 0] - 0.5) < 0.13) & (p[:, 1] < 0.3))
+    once, t1 = open_crack(mesh, first[:3], np.tile([1.0, 0.0, 0.0], (3, 1)))
+    q = once.points
+    second = np.flatnonzero((np.abs(q[:, 0] - 0.5) < 0.13) & (q[:, 1] > 0.3) & (q[:, 1] < 0.6))
+    twice, t2 = open_crack(once, second[:2], np.tile([1.0, 0.1, 0.0], (2, 1)))
+    return [(mesh, once, t1), (once, twice, t2)]
+
+
+@pytest.mark.parametrize("per_element", [False, True])
+@pytest.mark.parametrize("distortion", [0.0, 0.15])
+def test_reconnected_operators_equal_a_fresh_assembly(distortion, per_element):
+    for old, new, transfer in _cracked(distortion):
+        assert new.n_points > old.n_points
+        changed = changed_tets(old.tets, new.tets, transfer.node_map)
+        assert changed is not None and 0 < changed.size < new.n_tets
+        old_space, new_space = build_space(old, 1), build_space(new, 1)
+        tangent = D
+        if per_element:  # a second material on half the tets
+            scale = np.where(np.arange(old.n_tets) % 2 == 0, 1.0, 0.25)
+            tangent = np.ascontiguousarray(D[:, :, None, None] * scale[None, None, :, None])
+        op = strain_operator(old_space)
+        op_new, k_new = reconnect(op, op.stiffness(tangent), tangent, new_space,
+                                  np.asarray(old.tets), np.asarray(new.tets), changed)
+        fresh = strain_operator(new_space)
+        for a, b in ((op_new.matrix, fresh.matrix),):
+            np.testing.assert_array_equal(a.indptr, b.indptr)
+            np.testing.assert_array_equal(a.indices, b.indices)
+            np.testing.assert_array_equal(a.data, b.data)
+        k_fresh = fresh.stiffness(tangent).tocsr()
+        k_fresh.eliminate_zeros()
+        scale = np.abs(k_fresh.diagonal()).max()
+        assert abs(k_new - k_fresh).max() <= 1e-14 * scale * 10
+        # the same couplings: none kept that only the changed tets carried
+        kept = k_fresh.copy()
+        kept.data[np.abs(kept.data) <= 1e-13 * scale] = 0.0
+        kept.eliminate_zeros()
+        assert (k_new != 0).nnz == (kept != 0).nnz
+        assert ((k_new != 0) != (kept != 0)).nnz == 0
+
+
+def test_not_a_reconnection_is_refused():
+    mesh = structured_box((2, 2, 2))
+    tets = np.asarray(mesh.tets)
+    ids = np.arange(mesh.n_points)
+    assert changed_tets(tets, tets, ids).size == 0
+    assert changed_tets(tets, tets[::-1], ids) is None  # tets reordered
+    assert changed_tets(tets, tets[1:], ids) is None  # a tet gone
+    assert changed_tets(tets, tets, ids[::-1]) is None  # old ids not kept
