@@ -65,9 +65,10 @@ def test_every_site_really_splits_and_protected_vertices_never_do():
     assert new.n_points > mesh.n_points
 
 
-def test_vertices_on_a_crack_are_preferred():
-    """Of the vertices of the most stressed element whose planes split, the one closest to
-    the element's plane is taken; marked as lying on a crack, another one wins."""
+def _two_ways():
+    """A distorted box, one crack direction for every tet, the first tet that at least two
+    of its corners can split along it, those corners, and the one whose plane passes
+    nearest the tet's centroid."""
     mesh = structured_box((4, 3, 3), distortion=0.1, seed=5)
     direction = np.tile(np.array([1.0, 0.5, 0.3]) / np.linalg.norm([1.0, 0.5, 0.3]),
                         (mesh.n_tets, 1))
@@ -76,14 +77,21 @@ def test_vertices_on_a_crack_are_preferred():
     good = np.array([sum(splits(mesh.points, mesh.tets, c, lookups, v, direction[e])
                          for v in mesh.tets[e]) for e in range(mesh.n_tets)])
     e = int(np.flatnonzero(good >= 2)[0])
+    candidates = [v for v in mesh.tets[e]
+                  if splits(mesh.points, mesh.tets, c, lookups, v, direction[e])]
+    distance = np.abs((mesh.points[candidates] - c[e]) @ direction[e])
+    return mesh, direction, e, candidates, candidates[int(np.argmin(distance))]
+
+
+def test_vertices_on_a_crack_are_preferred():
+    """Of the vertices of the most stressed element whose planes split, the one closest to
+    the element's plane is taken; marked as lying on a crack, another one wins."""
+    mesh, direction, e, candidates, nearest = _two_ways()
     sigma1 = np.full(mesh.n_tets, 0.0)
     sigma1[e] = 2.0
     first = _select(mesh, sigma1, direction, 1)
     assert first.elements[0] == e
-    candidates = [v for v in mesh.tets[e]
-                  if splits(mesh.points, mesh.tets, c, lookups, v, direction[e])]
-    distance = np.abs((mesh.points[candidates] - c[e]) @ direction[e])
-    assert first.vertices[0] == candidates[int(np.argmin(distance))]
+    assert first.vertices[0] == nearest
     other = next(v for v in candidates if v != first.vertices[0])
     on_crack = np.zeros(mesh.n_points, bool)
     on_crack[other] = True
@@ -95,18 +103,7 @@ def test_a_cohesive_crack_starts_at_the_most_stressed_vertex():
     """With ``peak_first`` (cohesive cracks), a new crack splits the vertex of the element
     whose tets are the most stressed on average, not the one nearest the plane through the
     centroid; without it (brittle) the nearest plane still decides."""
-    mesh = structured_box((4, 3, 3), distortion=0.1, seed=5)
-    direction = np.tile(np.array([1.0, 0.5, 0.3]) / np.linalg.norm([1.0, 0.5, 0.3]),
-                        (mesh.n_tets, 1))
-    lookups = star(mesh.tets, mesh.n_points)
-    c = mesh.points[mesh.tets].mean(axis=1)
-    good = np.array([sum(splits(mesh.points, mesh.tets, c, lookups, v, direction[e])
-                         for v in mesh.tets[e]) for e in range(mesh.n_tets)])
-    e = int(np.flatnonzero(good >= 2)[0])
-    candidates = [v for v in mesh.tets[e]
-                  if splits(mesh.points, mesh.tets, c, lookups, v, direction[e])]
-    distance = np.abs((mesh.points[candidates] - c[e]) @ direction[e])
-    nearest = candidates[int(np.argmin(distance))]
+    mesh, direction, e, candidates, nearest = _two_ways()
     peak = next(v for v in candidates if v != nearest)
     # the tets around `peak` carry a stress just under the strength, the rest nothing
     sigma1 = np.zeros(mesh.n_tets)
