@@ -120,7 +120,7 @@ def _reconnected(recipe: Recipe, space: Space, tangent: np.ndarray, previous: tu
         return None
     old, node_map = previous
     changed = changed_tets(old.mesh.tets, space.mesh.tets, node_map)
-    if changed is None or old.ops.strain_operator.formulation != "standard":
+    if changed is None:
         return None
     return reconnect(old.ops.strain_operator, old.ops.stiffness, tangent, space,
                      np.asarray(old.mesh.tets), np.asarray(space.mesh.tets), changed)
