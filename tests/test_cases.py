@@ -73,18 +73,7 @@ def test_case_runs_and_writes_readable_output(case, tmp_path):
 
 # Cases whose bodies still pass through each other, and why; a case that comes within the
 # tolerance fails here until it is taken off the list.
-OVERLAP_PENDING = {
-    "breaking_beam": "a small piece cut off a clamped stub (19 tets) is born 2.4 mm inside a "
-                     "half and lies there at 20 ms (fem-frac overlap: 3.4 % of its size; "
-                     "every other frame within 0.73 %): the stub's elements went into the "
-                     "half in the steps before, when the contact with the finite elements "
-                     "acts between steps only (docs/fragments.md)",
-    "projectile_plate": "the ball strikes the plate through the contact with the finite "
-                        "elements, which acts between steps: it reaches 0.18 mm (1.4 % of "
-                        "its size) into the plate, and the piece it knocks out is born "
-                        "0.33 mm (3.6 %) inside it, where the crack faces crossed in the "
-                        "step that cut it out (docs/fragments.md)",
-}
+OVERLAP_PENDING: dict[str, str] = {}
 
 
 def check_no_overlap(case: Path, out: Path) -> None:

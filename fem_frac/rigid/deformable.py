@@ -34,14 +34,20 @@ contact point). The Delassus matrix ``J W J^T`` goes to the Poisson solver of
 velocities it constrains are those that move the positions over the next step (central
 difference's ``v + dt a / 2``, the rigid bodies' ``V + dt g / 2``), and the target
 ``v_n >= -max(gap, 0) / dt`` keeps a gap from closing past zero and a contact from going
-deeper, without pushing apart (no position projection: moving nodes would change the strain
-energy; an overlap the prediction missed, from rotation or a changed acceleration, is
-kept, not made deeper). Inelastic at the nodes: the rebound of an impact comes from the
+deeper, without pushing apart (the nodes are never moved: that would change the strain
+energy). Inelastic at the nodes: the rebound of an impact comes from the
 elements' strain energy, not from a node thrown back. The impulses on the two sides are
 equal and opposite: momentum is exchanged exactly; the kinetic energy of the constrained
 velocities does not rise (``lambda . b + lambda . A lambda / 2 <= 0``), while the step-end
 kinetic energy may change by up to ``dt / 2`` times the impulses' work on the relative
 acceleration (what a contact force applied over the next step does).
+
+:func:`separate` then moves the rigid bodies, not the nodes, out of what they still overlap
+(an overlap the prediction missed: a turning body, an implicit step whose acceleration
+differs from the predicted one, a piece born where its crack faces crossed): each movable
+body by its least translation that closes every penetrating contact
+(:mod:`~fem_frac.rigid.separation`; a wedged body stays), velocities kept, so no kinetic
+energy is added and the finite elements' strain energy is untouched.
 """
 
 from __future__ import annotations
@@ -57,6 +63,7 @@ from .body import (
 )
 from .collide import hull
 from .contact import frames, poisson_impulses
+from .separation import least_translation
 from .surface import (
     Exterior,
     Solid,
@@ -323,6 +330,21 @@ def exchange(el: Elements, bodies, contacts: Contacts, accel, dt: float) -> Exch
     return Exchange(nodes, fe, el.inverse_mass[nodes] * fe, used,
                     impulse[3 * m:].reshape(-1, 6),
                     float(lam @ b + 0.5 * lam @ alam), len(kept))
+
+
+def separate(bodies, movable, contacts: Contacts) -> np.ndarray:
+    """``(n, 3)``: the translation of each of the ``bodies`` that closes every penetration
+    (gap < 0) among ``contacts`` with the finite elements held in place
+    (:func:`~fem_frac.rigid.separation.least_translation`, along minus the normals, which
+    point from the body to the finite elements); zero for a body not ``movable`` (fixed)
+    or wedged (left as it is)."""
+    shift = np.zeros((len(bodies), 3))
+    inside = contacts.gap < 0.0
+    for k in np.unique(contacts.body[inside]):
+        if movable[k]:
+            mine = inside & (contacts.body == k)
+            shift[k] = least_translation(-contacts.normal[mine], contacts.gap[mine])
+    return shift
 
 
 def _velocities(el: Elements, bodies, nodes, used, accel, dt: float) -> np.ndarray:

@@ -30,10 +30,13 @@ The Gauss-Seidel loop runs over contact points in Python; the matrices are dense
 once, not for a heap of thousands).
 
 **Projection** (:func:`separate`): points left inside another body (linear prediction of
-the time of impact, rotation within a step) are separated by translations along the normals,
-the mass-weighted least displacement (the same Gauss-Seidel, at the position level, before
-the drift); velocities are kept, so no kinetic energy is added. The points of a body far
-from convex, touching by its own tets (:mod:`~fem_frac.rigid.nonconvex`), are left out.
+the time of impact, rotation within a step, a piece born inside another) are separated by
+translations along the normals, the mass-weighted least displacement (the same
+Gauss-Seidel, at the position level, before the drift); velocities are kept, so no kinetic
+energy is added. A pair touching by its own tets (:mod:`~fem_frac.rigid.nonconvex`), whose
+points' normals may nearly oppose at a jagged crack, enters it as one point: the least
+relative translation that clears every pair of their tets that overlaps, and none where
+one body is wedged in the other (:mod:`~fem_frac.rigid.separation`).
 
 **Sleeping**: a sleeping body stays asleep against bodies that rest too (it is then fixed in
 their island); a moving body that reaches it wakes it.
@@ -45,7 +48,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from .body import RigidBody, inverse_inertia_world, inverse_mass
+from .body import RigidBody, inverse_inertia_world, inverse_mass, world_points
 from .collide import Touch, candidate_pairs, hull, swept_boxes, touching
 from .contact import (
     contact_frame,
@@ -53,11 +56,13 @@ from .contact import (
     frames,
     poisson_impulses,
     project,
+    signed_distance,
     step,
     targets,
 )
 from .motion import free_flight
 from .nonconvex import touching_shapes
+from .separation import least_translation, overlap_constraints, world_tets
 
 # Pairs closer than this fraction of their radii count as touching (a resting contact at
 # gap 0, or a round-off apart, stays found).
@@ -106,6 +111,11 @@ class Rows:
 
     def __len__(self):
         return len(self.gap)
+
+
+_SETTLE_PASSES = 3  # of the projection after the drift (:func:`_settle`)
+_FIELDS = ("first", "second", "point", "frame", "gap", "restitution", "friction", "pair",
+           "projected")
 
 
 def _concatenate(parts: list[tuple]) -> Rows:
@@ -232,16 +242,17 @@ def resolve_rows(bodies, movable, rows: Rows, dt: float, v_rest: float):
     return out, np.einsum("cij,ci->cj", rows.frame, lam.reshape(-1, 3))
 
 
-def separate(bodies, movable, rows: Rows) -> list:
+def separate(bodies, movable, rows: Rows, shapes=None) -> list:
     """The bodies translated along the normals, the least mass-weighted displacement that
-    closes every penetration of ``rows`` (gap < 0) that is ``projected`` (not the points of
-    a body touching by its own tets: :mod:`~fem_frac.rigid.nonconvex`); momenta kept."""
-    inside = np.flatnonzero((rows.gap < 0.0) & rows.projected)
-    if inside.size == 0:
+    closes every penetration (gap < 0) of the ``projected`` ``rows`` and of each pair
+    touching by their own tets when the bodies' ``shapes`` are given (:func:`_own_rows`),
+    and closes no other gap past zero; momenta kept."""
+    own = _own_rows(bodies, movable, rows, shapes) if shapes is not None else []
+    if not (own or np.any((rows.gap < 0.0) & rows.projected)):
         return list(bodies)
-    sub = Rows(*(getattr(rows, f)[inside] for f in
-                 ("first", "second", "point", "frame", "gap", "restitution", "friction",
-                  "pair", "projected")))
+    # the points still apart take part as limits (not pushed into another body or a plane)
+    kept = np.flatnonzero(rows.projected)
+    sub = _concatenate([tuple(getattr(rows, f)[kept] for f in _FIELDS)] + own)
     n = len(bodies)
     # translations only: the (v) columns of the Jacobian, inverse masses 1/m
     jac = _jacobian(sub, np.array([b.position for b in bodies]), n).reshape(-1, n, 6)[:, :, :3]
@@ -254,6 +265,40 @@ def separate(bodies, movable, rows: Rows) -> list:
     shift = (wjt @ lam).reshape(n, 3)
     return [replace(b, position=b.position + shift[k]) if movable[k] else b
             for k, b in enumerate(bodies)]
+
+
+def _own_rows(bodies, movable, rows: Rows, shapes) -> list[tuple]:
+    """One row per pair touching by their own tets (:mod:`~fem_frac.rigid.nonconvex`) with
+    a point inside the other: the least relative translation ``delta`` of the second body
+    over the first that clears every pair of their tets that overlaps (separating axes:
+    :func:`~fem_frac.rigid.separation.overlap_constraints`), as a point of normal
+    ``delta / |delta|`` and gap ``-|delta|``; none where one is wedged in the other
+    (:func:`~fem_frac.rigid.separation.least_translation`). The projection then solves
+    these with the planes' and the hulls' points at once."""
+    own = (rows.gap < 0.0) & rows.pair & ~rows.projected
+    return _own_parts(bodies, movable,
+                      np.unique(np.column_stack([rows.first[own], rows.second[own]]), axis=0),
+                      shapes)
+
+
+def _own_parts(bodies, movable, pairs, shapes) -> list[tuple]:
+    """The rows of :func:`_own_rows` of the given ``pairs (k, 2)`` of bodies."""
+    parts = []
+    for i, j in pairs:
+        if not (movable[i] or movable[j]):
+            continue
+        a, b = bodies[i], bodies[j]
+        tolerance = _SLOP * (hull(a.points).radius + hull(b.points).radius)
+        normal, depth = overlap_constraints(world_tets(a, shapes[i]),
+                                            world_tets(b, shapes[j]), tolerance)
+        delta = least_translation(normal, -depth)
+        length = float(np.linalg.norm(delta))
+        if length > 0.0:
+            parts.append((np.array([i]), np.array([j]), 0.5 * (a.position + b.position)[None],
+                          contact_frame(delta / length)[None], np.array([-length]),
+                          np.zeros(1), np.zeros(1), np.ones(1, dtype=bool),
+                          np.ones(1, dtype=bool)))
+    return parts
 
 
 def _per_body(rows: Rows, impulses: np.ndarray, obstacle: np.ndarray) -> np.ndarray:
@@ -289,6 +334,42 @@ def _fly(bodies, movable, dt: float, gravity, planes) -> list:
             for k, b in enumerate(bodies)]
 
 
+def _settle(bodies, island: Island, planes) -> list:
+    """The island's bodies after the drift, the pairs touching by their own tets that
+    overlap now (a rotation, or contact points whose normals conflict, let the step carry
+    them in) separated by :func:`separate`, the planes' points held."""
+    shapes = island.shapes
+    pairs = [(i, j) for i, j in island.pairs
+             if shapes[i] is not None or shapes[j] is not None]
+    # a translation that clears the tets overlapping now may reach others: a few passes
+    for _ in range(_SETTLE_PASSES if pairs else 0):
+        parts = _own_parts(bodies, island.movable, pairs, shapes)
+        if not parts:
+            break
+        # the planes hold every vertex the projection could move through them
+        reach = max(-float(part[4][0]) for part in parts)
+        rows = _concatenate(parts + _planes_within(bodies, island.movable, planes, reach))
+        bodies = separate(bodies, island.movable, rows)
+    return bodies
+
+
+def _planes_within(bodies, movable, planes, reach: float) -> list[tuple]:
+    """Rows of every hull vertex of the ``movable`` bodies within ``reach`` of a plane."""
+    parts = []
+    for k in np.flatnonzero(movable):
+        x = world_points(bodies[k])
+        for plane in planes:
+            gap = signed_distance(plane, x)
+            near = np.flatnonzero(gap <= reach)
+            m = len(near)
+            if m:
+                parts.append((np.full(m, -1), np.full(m, k), x[near],
+                              np.broadcast_to(contact_frame(plane.normal), (m, 3, 3)),
+                              gap[near], np.zeros(m), np.zeros(m), np.zeros(m, dtype=bool),
+                              np.ones(m, dtype=bool)))
+    return parts
+
+
 def step_island(island: Island, dt: float, gravity, planes):
     """``(bodies, impulses (n, 2))``: the island after one step ``dt`` (module docstring),
     and the impulses each body received (:func:`_per_body`)."""
@@ -304,8 +385,9 @@ def step_island(island: Island, dt: float, gravity, planes):
     if not np.any(fast):
         # resting contact: kick, impulses, separation, drift
         hit, impulses = resolve_rows(kicked, movable, rows, dt, v_rest)
-        moved = _fly(separate(hit, movable, rows), movable, dt, np.zeros(3), planes)
-        return moved, _per_body(rows, impulses, island.obstacle)
+        moved = _fly(separate(hit, movable, rows, island.shapes), movable, dt, np.zeros(3),
+                     planes)
+        return _settle(moved, island, planes), _per_body(rows, impulses, island.obstacle)
     # an impact: all the island flies to the first bouncing point's time of impact, the
     # impulses act there, and it flies on (as contact.step for one body)
     tau = float(np.clip(np.min(np.maximum(rows.gap[fast], 0.0) / approach[fast]), 0.0, dt))
@@ -315,8 +397,8 @@ def step_island(island: Island, dt: float, gravity, planes):
                         shapes=island.shapes)
     threshold = v_rest - float(np.linalg.norm(g)) * rest
     hit, impulses = resolve_rows(at_impact, movable, rows, dt, threshold)
-    moved = _fly(separate(hit, movable, rows), movable, rest, g, planes)
-    return moved, _per_body(rows, impulses, island.obstacle)
+    moved = _fly(separate(hit, movable, rows, island.shapes), movable, rest, g, planes)
+    return _settle(moved, island, planes), _per_body(rows, impulses, island.obstacle)
 
 
 def _touches(everything, awake, dt: float, gravity, shapes) -> list[tuple[int, int, Touch]]:
@@ -414,3 +496,4 @@ def step_all(bodies, asleep, moving, dt: float, gravity, planes, fixed=(),
             if k < n:
                 out[k], impulses[k] = moved[m], received[m]
     return out, impulses, woken, len(touches)
+

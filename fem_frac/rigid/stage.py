@@ -39,6 +39,7 @@ from .contact import Plane
 from .fragment import RigidFragment, rigid_piece
 from .loads import piece_loads
 from .nonconvex import own_shape
+from .birth import place
 from .pairs import PairLaw, step_all
 from .surface import exterior
 
@@ -179,7 +180,19 @@ class RigidStage:
                          vibration_removed=ledger.vibration_removed + vibration)
         event = HandOffEvent(tuple(f for _, f in pieces), tuple(len(e) for e, _ in pieces))
         return replace(world, body=rest, ledger=ledger,
-                       rigid=world.rigid + event.pieces), event
+                       rigid=self._placed(world, event.pieces)), event
+
+    def _placed(self, world: World, pieces: tuple) -> tuple[RigidFragment, ...]:
+        """The rigid bodies with the new ``pieces``, each moved out of the bodies it was
+        born inside (:func:`~fem_frac.rigid.birth.place`)."""
+        everything = world.rigid + pieces
+        if len(everything) == 1 and not self.fixed:
+            return everything
+        newborn = np.arange(len(everything)) >= len(world.rigid)
+        bodies = place([f.body for f in everything], newborn, world.obstacles, self.fixed,
+                       [own_shape(f) for f in everything])
+        return tuple(replace(f, body=b) if b is not f.body else f
+                     for f, b in zip(everything, bodies, strict=True))
 
     def free_pieces(self, body: Body, first_id: int) -> list[tuple[np.ndarray, RigidFragment]]:
         """``(element ids, rigid fragment)`` of every piece without a constrained node that
@@ -250,7 +263,9 @@ class ElementContactEvent:
     constrained dofs included) and ``on_bodies (3,)`` the rigid bodies received (fixed ones
     included): equal and opposite; ``work``: the kinetic energy it gave the finite
     elements; ``rigid``: the rigid bodies' kinetic energy change; ``constrained``: the
-    change of the kinetic energy of the velocities it constrains (<= 0)."""
+    change of the kinetic energy of the velocities it constrains (<= 0); ``projected``: the
+    longest translation that moved a body out of the finite elements
+    (:func:`~fem_frac.rigid.deformable.separate`)."""
 
     contacts: int = 0
     on_elements: np.ndarray = field(default_factory=lambda: np.zeros(3))
@@ -258,6 +273,7 @@ class ElementContactEvent:
     work: float = 0.0
     rigid: float = 0.0
     constrained: float = 0.0
+    projected: float = 0.0
 
 
 class ElementContactStage:
@@ -301,7 +317,15 @@ class ElementContactStage:
         if len(contacts) == 0:
             return world, ElementContactEvent()
         ex = deformable.exchange(elements, bodies, contacts, accel, dt)
-        return self._apply(world, ex, n)
+        world, event = self._apply(world, ex, n)
+        # what the bodies still overlap, they leave by a translation (the nodes stay)
+        shift = deformable.separate(bodies, np.arange(len(bodies)) < n, contacts)[:n]
+        if np.any(shift):
+            world = replace(world, rigid=tuple(
+                replace(f, body=replace(f.body, position=f.body.position + s))
+                if np.any(s) else f for f, s in zip(world.rigid, shift, strict=True)))
+            event = replace(event, projected=float(np.linalg.norm(shift, axis=1).max()))
+        return world, event
 
     def elements(self, body: Body) -> deformable.Elements:
         """The finite-element side of the body's state (exterior cached per mesh)."""
