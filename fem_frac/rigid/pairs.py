@@ -496,4 +496,3 @@ def step_all(bodies, asleep, moving, dt: float, gravity, planes, fixed=(),
             if k < n:
                 out[k], impulses[k] = moved[m], received[m]
     return out, impulses, woken, len(touches)
-

@@ -34,12 +34,12 @@ from ..world.state import Body, World, body_of
 from ..world.transfer import carry, rediscretize
 from . import deformable
 from . import loads as rigid_loads
+from .birth import place
 from .body import kinetic_energy
 from .contact import Plane
 from .fragment import RigidFragment, rigid_piece
 from .loads import piece_loads
 from .nonconvex import own_shape
-from .birth import place
 from .pairs import PairLaw, step_all
 from .surface import exterior
 
@@ -263,9 +263,7 @@ class ElementContactEvent:
     constrained dofs included) and ``on_bodies (3,)`` the rigid bodies received (fixed ones
     included): equal and opposite; ``work``: the kinetic energy it gave the finite
     elements; ``rigid``: the rigid bodies' kinetic energy change; ``constrained``: the
-    change of the kinetic energy of the velocities it constrains (<= 0); ``projected``: the
-    longest translation that moved a body out of the finite elements
-    (:func:`~fem_frac.rigid.deformable.separate`)."""
+    change of the kinetic energy of the velocities it constrains (<= 0)."""
 
     contacts: int = 0
     on_elements: np.ndarray = field(default_factory=lambda: np.zeros(3))
@@ -273,7 +271,6 @@ class ElementContactEvent:
     work: float = 0.0
     rigid: float = 0.0
     constrained: float = 0.0
-    projected: float = 0.0
 
 
 class ElementContactStage:
@@ -324,7 +321,6 @@ class ElementContactStage:
             world = replace(world, rigid=tuple(
                 replace(f, body=replace(f.body, position=f.body.position + s))
                 if np.any(s) else f for f, s in zip(world.rigid, shift, strict=True)))
-            event = replace(event, projected=float(np.linalg.norm(shift, axis=1).max()))
         return world, event
 
     def elements(self, body: Body) -> deformable.Elements:
