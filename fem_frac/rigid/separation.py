@@ -20,6 +20,9 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..mesh.mesh import TET_EDGES, TET_FACES
+from .body import rotation_matrix
+
 WEDGED = 2.0
 
 
@@ -46,15 +49,9 @@ def least_translation(normals, gaps) -> np.ndarray:
     return s if np.linalg.norm(s) <= WEDGED * scale else np.zeros(3)
 
 
-# the six edges of a tet (vertex pairs)
-_EDGES = np.array([[0, 1], [0, 2], [0, 3], [1, 2], [1, 3], [2, 3]])
-# its four faces, each opposite one vertex
-_FACES = np.array([[1, 2, 3], [0, 2, 3], [0, 1, 3], [0, 1, 2]])
-
-
 def _face_axes(x: np.ndarray) -> np.ndarray:
     """(k, 4, 3) the (unnormalized) face normals of tets ``x (k, 4, 3)``."""
-    c = x[:, _FACES]
+    c = x[:, TET_FACES]
     return np.cross(c[:, :, 1] - c[:, :, 0], c[:, :, 2] - c[:, :, 0])
 
 
@@ -67,8 +64,8 @@ def tet_overlaps(xa: np.ndarray, xb: np.ndarray) -> tuple[np.ndarray, np.ndarray
     k = len(xa)
     if k == 0:
         return np.zeros((0, 3)), np.zeros(0)
-    ea = xa[:, _EDGES[:, 1]] - xa[:, _EDGES[:, 0]]
-    eb = xb[:, _EDGES[:, 1]] - xb[:, _EDGES[:, 0]]
+    ea = xa[:, TET_EDGES[:, 1]] - xa[:, TET_EDGES[:, 0]]
+    eb = xb[:, TET_EDGES[:, 1]] - xb[:, TET_EDGES[:, 0]]
     cross = np.cross(ea[:, :, None], eb[:, None, :]).reshape(k, 36, 3)
     axes = np.concatenate([_face_axes(xa), _face_axes(xb), cross], axis=1)
     length = np.linalg.norm(axes, axis=2)
@@ -89,8 +86,6 @@ def tet_overlaps(xa: np.ndarray, xb: np.ndarray) -> tuple[np.ndarray, np.ndarray
 def world_tets(body, shape) -> np.ndarray:
     """``(e, 4, 3)``: a body's tets in world coordinates: its own (``shape``, a
     :class:`~fem_frac.rigid.surface.Solid`), else its hull's Delaunay tets."""
-    from .body import rotation_matrix
-
     if shape is not None:
         x, tets = shape.vertices, shape.tets
     else:
