@@ -105,6 +105,21 @@ BAD = [
      "  equilibrium: {method: newtom}\n", 20, "analysis.equilibrium.method", "newton"),
     ("dynamic without density", _edit("  density: 7850\n", "") + "analysis:\n"
      "  type: dynamic\n  dt: 1e-5\n  steps: 2\n", 8, "material.density", "needs"),
+    ("a load on vertices", _edit("boundary: xmax", "vertices: {min: [1, 0, 0], max: [1, 0.5, 0]}"),
+     16, "boundary_conditions[1].vertices", "unknown key"),
+    ("a support on no node", _edit("boundary: xmin", "vertices: {min: [0.3, 0, 0], "
+                                   "max: [0.3, 0.5, 0]}"), 14,
+     "boundary_conditions[0].vertices", "holds no node"),
+    ("two selections", _edit("boundary: xmin", "boundary: xmin\n    vertices: {min: [0, 0, 0], "
+                             "max: [0, 0.5, 0]}"), 13, "boundary_conditions[0]",
+     "exactly one of 'boundary', 'box' or 'vertices'"),
+    ("crack planes with perturbation", BASE + "fracture:\n  tensile_strength: 1e6\n"
+     "  smoothing: {rings: 1}\n  perturbation: {angle: 5}\n"
+     "  planes: [{point: [0.5, 0, 0], normal: [1, 0, 0]}]\n", 18, "fracture",
+     "give one or the other"),
+    ("crack plane without normal", BASE + "fracture:\n  tensile_strength: 1e6\n"
+     "  smoothing: {rings: 1}\n  planes: [{point: [0.5, 0, 0], normal: [0, 0, 0]}]\n", 21,
+     "fracture.planes[0]", "non-zero"),
 ]
 
 

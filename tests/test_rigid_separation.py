@@ -8,9 +8,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from fem_frac.rigid.birth import place
 from fem_frac.rigid.deformable import detect, separate
 from fem_frac.rigid.nonconvex import own_shape
-from fem_frac.rigid.birth import place
 from fem_frac.rigid.separation import WEDGED, least_translation, tet_overlaps, world_tets
 from tests.test_deformable_contact import _block_and_cube
 from tests.test_rigid_nonconvex import _stepped_halves

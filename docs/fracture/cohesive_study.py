@@ -1,7 +1,10 @@
-"""Table and figure of the cohesive notched-beam mesh study (docs/fracture/cohesive_convergence.md).
+"""Table and figure of a notched-beam cohesive study (docs/fracture/cohesive_convergence.md).
 
     fem-frac study studies/notched_beam_cohesive.yaml          # writes out/notched_beam_cohesive
     python docs/fracture/cohesive_study.py out/notched_beam_cohesive
+    fem-frac study studies/notched_beam_ligament.yaml          # writes out/notched_beam_ligament
+    python docs/fracture/cohesive_study.py out/notched_beam_ligament \
+        -o docs/fracture/ligament_load_displacement.png --xmax 450
 
 reads every run of the study (``runs/<id>/``: summary.json, history.csv, case.resolved.yaml and
 the last step of the crack surface series), prints the markdown table of the docs (peak load,
@@ -35,9 +38,16 @@ def read_history(path: Path) -> dict[str, np.ndarray]:
     return {k: np.array([float(r[k]) for r in rows]) for k in rows[0]}
 
 
+def load_condition(case: dict) -> tuple[dict, str]:
+    """The condition that pushes the beam down (the one with a non-zero ``z``) and its label
+    in history.csv (its boundary's name, else ``boundary_conditions[i]``)."""
+    i, bc = next((i, b) for i, b in enumerate(case["boundary_conditions"]) if b.get("z"))
+    return bc, bc.get("boundary") or f"boundary_conditions[{i}]"
+
+
 def load_displacement(case: dict, time: np.ndarray) -> np.ndarray:
-    """The prescribed downward displacement of the load strip at ``time`` (m)."""
-    bc = next(b for b in case["boundary_conditions"] if b.get("boundary") == "load")
+    """The prescribed downward displacement of the load strip or line at ``time`` (m)."""
+    bc, _ = load_condition(case)
     curve = bc.get("curve", "ramp")
     t_end = case["analysis"].get("t_end", 1.0)
     if curve == "ramp":
@@ -70,7 +80,7 @@ def read_run(run_dir: Path) -> dict:
     case = YAML(typ="safe").load((run_dir / "case.resolved.yaml").read_text())
     hist = read_history(run_dir / "history.csv")
     delta = load_displacement(case, hist["time"])
-    load = -hist["reaction_load_z"]
+    load = -hist[f"reaction_{load_condition(case)[1]}_z"]
     peak = int(np.argmax(load))
     gc = float(case["fracture"]["fracture_energy"])
     corners, damage = crack_faces(run_dir)
@@ -130,14 +140,14 @@ def table(runs: list[dict]) -> str:
         lines.append(
             f"| {r['h'] * 1000:g} mm (l_cz / {0.02 / r['h']:g}) | {r['tets']:,} | {run} "
             f"| {r['peak_load']:.1f} | {r['peak_delta'] * 1e6:.1f} "
-            f"| {r['end_load'] / r['peak_load']:.2f} at {r['end_delta'] * 1e6:.0f} um "
-            f"| {r['dissipated']:.2f} | {r['crack_area']:.2f} "
+            f"| {abs(r['end_load']) / r['peak_load']:.3f} at {r['end_delta'] * 1e6:.0f} um "
+            f"| {r['dissipated']:.3f} | {r['crack_area']:.2f} "
             f"| {r['on_plane']:.2f} ({r['broken_on_plane']:.2f}) | {r['max_offset'] * 1000:.1f} "
             f"| {r['wall_s']:.0f} |")
     return "\n".join(lines)
 
 
-def figure(runs: list[dict], path: Path) -> None:
+def figure(runs: list[dict], path: Path, xmax: float | None = None) -> None:
     import matplotlib
 
     matplotlib.use("Agg")
@@ -154,6 +164,8 @@ def figure(runs: list[dict], path: Path) -> None:
         ax.plot(r["peak_delta"] * 1e6, r["peak_load"], "o", color=c, ms=5)
         if r["status"] != "completed":
             ax.plot(r["end_delta"] * 1e6, r["end_load"], "x", color=c, ms=8, mew=2)
+    if xmax is not None:
+        ax.set_xlim(0.0, xmax)
     ax.set_xlabel("load-point displacement (um)")
     ax.set_ylabel("load (N)")
     ax.set_title("notched beam, cohesive cracks: load against displacement", fontsize=10)
@@ -186,6 +198,7 @@ def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("study_dir", type=Path, nargs="?", default=Path("out/notched_beam_cohesive"))
     p.add_argument("-o", "--figure", type=Path, default=HERE / "cohesive_load_displacement.png")
+    p.add_argument("--xmax", type=float, help="the plot's largest displacement (um)")
     args = p.parse_args()
     runs = sorted((read_run(d) for d in (args.study_dir / "runs").iterdir()
                    if (d / "summary.json").is_file()), key=lambda r: -r["h"])
@@ -196,7 +209,7 @@ def main() -> None:
         diffs = ", ".join(f"{abs(a - b):.2f}" for a, b in zip(peaks, peaks[1:], strict=False))
         print(f"\npeak load, three finest: differences {diffs} N; observed order "
               + (f"{p_obs:.2f}" if p_obs is not None else "none (differences do not shrink)"))
-    figure(runs, args.figure)
+    figure(runs, args.figure, args.xmax)
     print(f"figure: {args.figure}")
 
 

@@ -86,7 +86,7 @@ def interface_recipe(fracture) -> InterfaceRecipe | None:
                         "finite and positive (is the unit right?)")
     return InterfaceRecipe(TractionSeparation(law.law, fracture.tensile_strength,
                                               fracture.fracture_energy, law.shear_weight),
-                           law.penalty)
+                           law.penalty, law.quadrature)
 
 
 def check_stages(case: Case) -> None:

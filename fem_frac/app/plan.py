@@ -141,7 +141,9 @@ def _fracture(case: Case) -> Stage:
         return Stage("fracture", False, "not requested")
     s = f.smoothing
     size = f"length {s.length:g}" if s.length is not None else f"{s.rings} ring(s)"
-    text = (f"smoothed ({s.method}, {size}) max principal stress > {f.tensile_strength:g} opens "
+    what = (f"normal stress on {len(f.planes)} prescribed plane(s)" if f.planes
+            else "max principal stress")
+    text = (f"smoothed ({s.method}, {size}) {what} > {f.tensile_strength:g} opens "
             f"cracks by face separation: up to {f.batch_size} site(s) a batch, "
             f"{f.passes} re-solve(s) and {f.max_insertions_per_step} site(s) a step")
     if f.perturbation is not None:

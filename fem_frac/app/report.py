@@ -15,7 +15,7 @@ from ..config.schema import Case, DynamicAnalysis
 from ..fem.loads import facet_basis
 from ..mesh.build import build_mesh, mesh_file_path
 from ..mesh.mesh import min_dihedral_angles
-from ..mesh.selection import boundary_names, box_face_area, box_facets, named_facets
+from ..mesh.selection import boundary_names, box_face_area, box_facets, in_box, named_facets
 from ..rigid.obstacle_output import describe
 from ..rigid.obstacles import build_obstacles
 from ..solve.discretization import check_model, model_on
@@ -127,10 +127,19 @@ def _selection_lines(case: Case, mesh, space) -> list[str]:
     """The faces each box of a support or load selects (by centroid) and their area; for
     a flat box, the area of the box's own face beside it."""
     boxes = [(i, bc) for i, bc in enumerate(case.boundary_conditions) if bc.box is not None]
+    nodal = [(i, bc) for i, bc in enumerate(case.boundary_conditions)
+             if getattr(bc, "vertices", None) is not None]
+    lines = []
+    for i, bc in nodal:
+        count = int(in_box(mesh, space.node_points, bc.vertices.min, bc.vertices.max).sum())
+        lines.append(f"  boundary_conditions[{i}] {bc.type}: {count:,} nodes in the box "
+                     "'vertices'")
+    if lines:
+        lines.insert(0, "vertex selections (nodes in the box)")
     if not boxes:
-        return []
+        return lines
     exterior = outer_facets(mesh)
-    lines = ["box selections (faces whose centroid lies in the box)"]
+    lines.append("box selections (faces whose centroid lies in the box)")
     for i, bc in boxes:
         lo, hi = bc.box.min, bc.box.max
         triples = box_facets(mesh, lo, hi, exterior)
@@ -282,9 +291,29 @@ def _fracture_lines(case: Case, mesh, materials) -> list[str]:
     lines = ["fracture",
              f"  tensile strength {f.tensile_strength:g}; smoothing {s.method}, {size} "
              f"(mean edge {edge:.4g})",
-             f"  {np.count_nonzero(protected):,} of {mesh.n_points:,} vertices protected"]
+             f"  {np.count_nonzero(protected):,} of {mesh.n_points:,} vertices protected"
+             + (" or off the crack planes" if f.planes else "")]
+    if f.planes:
+        lines += _plane_lines(f, mesh)
     if f.fracture_energy is not None:
         lines += _cohesive_lines(case, mesh, materials, protected)
+    return lines
+
+
+def _plane_lines(f, mesh) -> list[str]:
+    """How many vertices of each prescribed crack plane may split, and how many elements
+    cross it (where a plane is no mesh surface no crack can follow it)."""
+    from ..fracture.planes import plane_sites
+
+    lines = []
+    for i, plane in enumerate(f.planes):
+        sites = plane_sites(mesh.points, mesh.tets, [plane])
+        lines.append(f"  crack plane {i} through {list(plane.point)}, normal "
+                     f"{list(plane.normal)}: {np.count_nonzero(sites.usable):,} vertices "
+                     f"may split, {np.count_nonzero(sites.crossing):,} elements cross it")
+        if not sites.usable.any():
+            lines.append(f"  warning: crack plane {i} holds no vertex that may split: no "
+                         "crack can open in it (is it a mesh surface?)")
     return lines
 
 

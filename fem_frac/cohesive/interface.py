@@ -10,11 +10,15 @@ the displacement, so that with the tractions ``t (q, 3)`` of the law and the are
     f_coh = J^T (w t),        K_coh = J^T diag(w dt/d[u]) J
 
 are the cohesive internal force and its stiffness (the derivatives of the cohesive energy
-``sum_p w_p phi_p([u]_p)``). Points: P1 faces use the vertex (Newton-Cotes) rule, weight
-A/3 at each corner pair, which uncouples the springs of a face and avoids the traction
-oscillations of Gauss points on stiff interfaces (Schellekens & de Borst 1993); P2 faces
-the six-point degree-4 rule (Dunavant 1985), exact for the quadratic jump squared. Faces
-are taken flat (their corners' plane).
+``sum_p w_p phi_p([u]_p)``). Points: P1 faces use by default the vertex (Newton-Cotes)
+rule, weight A/3 at each corner pair, which uncouples the springs of a face and avoids the
+traction oscillations of Gauss points on stiff interfaces (Schellekens & de Borst 1993);
+on request (``quadrature: gauss``) the three-point degree-2 rule at the points (2/3, 1/6,
+1/6), which lie inside the face: where a crack ends at a line that is held shut (the load
+line of a bend test, about which the broken halves turn) the vertex rule keeps the
+points on that line shut for good, and their share of the faces' area never dissipates
+its fracture energy. P2 faces use the six-point degree-4 rule (Dunavant 1985), exact for
+the quadratic jump squared. Faces are taken flat (their corners' plane).
 
 A point is named by its face's corner positions (sorted) and its barycentric weights in that
 order, so that the history of a face survives later insertions and pieces leaving, which
@@ -41,17 +45,22 @@ GAUSS6 = np.array([[_A, _A, 1 - 2 * _A], [_A, 1 - 2 * _A, _A], [1 - 2 * _A, _A, 
 GAUSS6_WEIGHTS = np.array([_WA] * 3 + [_WB] * 3)
 VERTICES = np.eye(3)
 VERTEX_WEIGHTS = np.full(3, 1.0 / 3.0)
+# The three-point rule, degree 2 (Strang & Fix): barycentric points and weights (sum 1).
+GAUSS3 = np.full((3, 3), 1.0 / 6.0) + 0.5 * np.eye(3)
+GAUSS3_WEIGHTS = np.full(3, 1.0 / 3.0)
 # P2 triangle: corners, then the mid-nodes of edges (0, 1), (1, 2), (0, 2)
 EDGES = np.array([[0, 1], [1, 2], [0, 2]])
 
 
 @dataclass(frozen=True)
 class InterfaceRecipe:
-    """What the cohesive faces of any mesh need: the law, and the factor of the initial
-    stiffness ``k0 = penalty E / h`` (h the face's mean edge length, E its element's)."""
+    """What the cohesive faces of any mesh need: the law, the factor of the initial
+    stiffness ``k0 = penalty E / h`` (h the face's mean edge length, E its element's) and
+    the ``quadrature`` of P1 faces (``vertices`` or ``gauss``; module docstring)."""
 
     law: TractionSeparation
     penalty: float
+    quadrature: str = "vertices"
 
 
 @dataclass(frozen=True, eq=False)
@@ -147,7 +156,7 @@ def build_interface(recipe: InterfaceRecipe, mesh: Mesh, space: Space,
     a, b = faces.a, faces.b
     p = mesh.points[a]
     area = 0.5 * np.linalg.norm(np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0]), axis=1)
-    bary, qw = (VERTICES, VERTEX_WEIGHTS) if space.order == 1 else (GAUSS6, GAUSS6_WEIGHTS)
+    bary, qw = _rule(space.order, recipe.quadrature)
     nq = len(qw)
     shape = _shape_functions(bary, space.order)  # (nq, n_local)
     nodes_a, nodes_b = _face_nodes(space, a), _face_nodes(space, b)
@@ -161,6 +170,13 @@ def build_interface(recipe: InterfaceRecipe, mesh: Mesh, space: Space,
     return Interface(law, jump, np.repeat(area, nq) * np.tile(qw, len(a)),
                      np.repeat(faces.normal, nq, axis=0), np.repeat(k0, nq), face, sides,
                      _point_keys(p, bary))
+
+
+def _rule(order: int, quadrature: str) -> tuple[np.ndarray, np.ndarray]:
+    """Barycentric points ``(nq, 3)`` and weights ``(nq,)`` of a face (module docstring)."""
+    if order != 1:
+        return GAUSS6, GAUSS6_WEIGHTS
+    return (GAUSS3, GAUSS3_WEIGHTS) if quadrature == "gauss" else (VERTICES, VERTEX_WEIGHTS)
 
 
 def least_stiffness(law: TractionSeparation) -> float:

@@ -40,6 +40,7 @@ from ..world.state import Body, World, body_of
 from ..world.transfer import carry, rediscretize
 from ..writers.fields import cell_average
 from .front import continue_planes, crack_front, front_normals, near_crack
+from .planes import PlaneSites, normal_stress, plane_sites
 from .sites import Sites, select_sites, star, tilt
 from .smoothing import principal_stress, smooth, smoothing_operator, update_operator
 from .topology import CRACK, extract, fragments, open_crack
@@ -80,11 +81,17 @@ class FractureEvent:
         return sum(b.sites for b in self.batches)
 
 
-def protected_vertices(config: schema.Fracture, mesh: Mesh, strict: bool = True) -> np.ndarray:
-    """``(n_points,)`` bool: vertices of the ``protect`` entries, which never split.
-    ``strict``: a box that selects no element is an error (in the case as given; later a
-    piece holding it may have left the mesh)."""
+def protected_vertices(config: schema.Fracture, mesh: Mesh, strict: bool = True,
+                       planes: PlaneSites | None = None) -> np.ndarray:
+    """``(n_points,)`` bool: vertices of the ``protect`` entries, which never split, and
+    with ``planes`` the vertices that may not split in them (:func:`plane_sites`, made here
+    when not given). ``strict``: a box that selects no element is an error (in the case as
+    given; later a piece holding it may have left the mesh)."""
     mask = np.zeros(mesh.n_points, dtype=bool)
+    if config.planes:
+        planes = planes if planes is not None else plane_sites(mesh.points, mesh.tets,
+                                                               config.planes)
+        mask |= ~planes.usable
     centroids = None
     for i, p in enumerate(config.protect):
         if p.boundary is not None:
@@ -133,6 +140,7 @@ class _Topology:
     near: np.ndarray | None = None  # and the tets whose neighbourhood reaches a crack
     front_normals: np.ndarray | None = None  # the crack's normal at tets on a front
     principal: tuple | None = None  # (stress, (sigma1, direction), smoothed) last asked
+    planes: PlaneSites | None = None  # fracture.planes: where cracks may open
 
 
 def _topology(config: schema.Fracture, mesh: Mesh, smoothing, strict: bool) -> _Topology:
@@ -147,10 +155,12 @@ def _topology(config: schema.Fracture, mesh: Mesh, smoothing, strict: bool) -> _
         # cohesive cracks grow from their fronts (fem_frac.fracture.sites), in their planes
         front, near = crack_front(mesh), near_crack(mesh, pattern)
         normals = front_normals(mesh, front)
-    return _Topology(mesh, smoothing, protected_vertices(config, mesh, strict),
-                     star(mesh.tets, mesh.n_points), volumes,
+    planes = plane_sites(mesh.points, mesh.tets, config.planes) if config.planes else None
+    protected = protected_vertices(config, mesh, strict, planes)
+    return _Topology(mesh, smoothing, protected, star(mesh.tets, mesh.n_points), volumes,
                      float(np.median(pattern @ volumes)), on_crack,
-                     np.zeros(mesh.n_points, dtype=bool), front, near, normals)
+                     np.zeros(mesh.n_points, dtype=bool), front, near, normals,
+                     planes=planes)
 
 
 class FractureStage:
@@ -316,7 +326,11 @@ class FractureStage:
         """Up to ``limit`` crack sites of the body's state (batch ``batch`` of step ``n``)."""
         mesh = body.mesh
         sigma1, direction = self.principal(body, topo)
-        if topo.front_normals is not None:
+        if topo.planes is not None:  # the normal stress on the prescribed planes
+            direction = topo.planes.normal
+            sigma1 = np.where(topo.planes.elements,
+                              normal_stress(topo.principal[2], direction), 0.0)
+        elif topo.front_normals is not None:
             direction = continue_planes(direction, topo.principal[2], sigma1,
                                         topo.front_normals)
         p = self.config.perturbation

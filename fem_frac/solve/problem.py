@@ -15,7 +15,7 @@ from ..fem import loads, surface
 from ..fem.space import Space
 from ..fem.surface import FaceLookup, Faces
 from ..mesh.mesh import exterior_facets, facet_keys
-from ..mesh.selection import box_facets, named_facets
+from ..mesh.selection import box_facets, in_box, named_facets
 
 AXES = "xyz"
 # the boundary group of crack faces (fem_frac.fracture.topology.CRACK)
@@ -82,10 +82,19 @@ def outer_facets(mesh, lookup: FaceLookup | None = None) -> np.ndarray:
 
 
 def _select(space: Space, bc, index: int, exterior: np.ndarray, lookup: FaceLookup,
-            strict: bool = True) -> Faces | None:
-    """The faces a condition selects, with their nodes and quadrature (None: no faces, and
-    not ``strict``)."""
+            strict: bool = True) -> Faces | np.ndarray | None:
+    """The faces a condition selects, with their nodes and quadrature, or for a ``vertices``
+    selection the scalar nodes in its box (None: nothing, and not ``strict``)."""
     mesh = space.mesh
+    if getattr(bc, "vertices", None) is not None:
+        nodes = np.flatnonzero(in_box(mesh, space.node_points, bc.vertices.min,
+                                      bc.vertices.max))
+        if len(nodes) == 0:
+            if not strict:
+                return None
+            raise CaseError(("boundary_conditions", index, "vertices"),
+                            "the box 'vertices' holds no node of the mesh")
+        return nodes
     if bc.boundary is not None:
         try:
             triples = named_facets(mesh, bc.boundary, exterior)
@@ -190,9 +199,11 @@ def _surface_force(space: Space, bc, facets: Faces) -> np.ndarray:
     return surface.face_load(space, facets, pressure=bc.pressure)
 
 
-def _supported(space: Space, bc, index: int, facets: Faces) -> tuple[np.ndarray, dict]:
-    """Scalar nodes of the faces and the prescribed value of each constrained component."""
-    nodes = surface.face_nodes(facets)
+def _supported(space: Space, bc, index: int,
+               facets: Faces | np.ndarray) -> tuple[np.ndarray, dict]:
+    """Scalar nodes of the faces (or the nodes selected) and the prescribed value of each
+    constrained component."""
+    nodes = facets if isinstance(facets, np.ndarray) else surface.face_nodes(facets)
     if isinstance(bc, schema.Fixed):
         return nodes, {0: 0.0, 1: 0.0, 2: 0.0}
     if isinstance(bc, schema.Displacement):

@@ -35,7 +35,16 @@ from .base import (
     Vector3,
 )
 from .case import UNIT_SYSTEMS, Case, Output, Reference
-from .fracture import Cohesive, Fracture, Fragments, Ground, Perturbation, Protect, Smoothing
+from .fracture import (
+    Cohesive,
+    CrackPlane,
+    Fracture,
+    Fragments,
+    Ground,
+    Perturbation,
+    Protect,
+    Smoothing,
+)
 from .geometry import (
     BoxGeometry,
     CylinderGeometry,
@@ -97,6 +106,7 @@ __all__ = [
     "FiniteFloat",
     "Fixed",
     "Cohesive",
+    "CrackPlane",
     "Fracture",
     "Fragments",
     "Geometry",

@@ -56,6 +56,22 @@ class Protect(Section):
         return self
 
 
+class CrackPlane(Section):
+    """A plane through ``point`` with ``normal`` in which cracks may open
+    (:mod:`fem_frac.fracture.planes`)."""
+
+    point: Vector3
+    normal: Vector3
+
+    @model_validator(mode="after")
+    def _normal(self):
+        square = sum(c * c for c in self.normal)
+        if not 1e-200 < square < 1e200:
+            raise ValueError("normal must be non-zero and of moderate length (a unit vector "
+                             "is best)")
+        return self
+
+
 class Cohesive(Section):
     """The traction-separation law of crack faces that carry a fracture energy.
 
@@ -64,11 +80,16 @@ class Cohesive(Section):
     it reaches zero); ``shear_weight`` (beta): the weight of the sliding in the effective
     opening ``sqrt(<d_n>^2 + beta^2 |d_s|^2)`` (Ortiz & Pandolfi 1999); ``penalty``: the
     initial stiffness of a new face, ``penalty x E / h`` (h its mean edge length), which
-    also keeps closed faces from passing through each other."""
+    also keeps closed faces from passing through each other; ``quadrature``: the points of
+    a linear (P1) face, its corners (``vertices``: no traction oscillations on stiff faces)
+    or three points inside it (``gauss``: every point of a crack that ends at a line held
+    shut can still open; :mod:`fem_frac.cohesive.interface`). Quadratic faces always use six
+    Gauss points."""
 
     law: Literal["linear", "exponential"] = "linear"
     shear_weight: Annotated[float, Field(gt=0.0, le=100.0)] = 1.0
     penalty: Annotated[float, Field(ge=1.0, le=1e4)] = 20.0
+    quadrature: Literal["vertices", "gauss"] = "vertices"
 
 
 class Fracture(Section):
@@ -78,7 +99,8 @@ class Fracture(Section):
     Within a step, up to ``passes`` batches are inserted; each batch holds at most
     ``batch_size`` sites (no two within one smoothing neighbourhood) and is followed by a
     re-solve of the step on the new mesh; a step inserts at most
-    ``max_insertions_per_step`` sites in all."""
+    ``max_insertions_per_step`` sites in all. With ``planes`` cracks open only in those
+    planes, where the smoothed normal stress on them exceeds the strength."""
 
     tensile_strength: PositiveFloat
     smoothing: Smoothing
@@ -87,6 +109,10 @@ class Fracture(Section):
     max_insertions_per_step: PositiveInt = 64
     perturbation: Perturbation | None = None
     protect: list[Protect] = []
+    planes: list[CrackPlane] = Field(
+        default=[], description="a prescribed crack path: cracks open only in these planes, "
+        "where they are mesh surfaces (no element crosses them), against the smoothed normal "
+        "stress on the plane; empty: anywhere, against the largest principal stress")
     fracture_energy: PositiveFloat | None = Field(
         default=None, description="G_c, energy per unit crack area (J/m^2): new crack faces "
         "carry a cohesive traction that dissipates it; absent: faces open traction-free")
@@ -96,6 +122,9 @@ class Fracture(Section):
     def _cohesive(self):
         if self.cohesive is not None and self.fracture_energy is None:
             raise ValueError("'cohesive' goes with 'fracture_energy' (the law's G_c)")
+        if self.planes and self.perturbation is not None:
+            raise ValueError("'perturbation' tilts crack normals; with 'planes' a crack's "
+                             "normal is its plane's: give one or the other")
         return self
 
     @property

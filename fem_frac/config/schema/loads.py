@@ -79,13 +79,30 @@ class _Where(Section):
         return self
 
 
-class Fixed(_Where):
+class _Nodes(Section):
+    """A support's selection: the nodes of a named boundary or of the exterior faces whose
+    centroid lies in ``box``, or the nodes that lie in the box ``vertices`` (bounds
+    included, widened by 1e-9 of the mesh's extent), which may be flat in two directions:
+    the nodes along a mesh edge, a line support or a line load by displacement."""
+
+    boundary: str | None = None
+    box: BoxSelection | None = None
+    vertices: BoxSelection | None = None
+
+    @model_validator(mode="after")
+    def _one_selection(self):
+        if sum(x is not None for x in (self.boundary, self.box, self.vertices)) != 1:
+            raise ValueError("give exactly one of 'boundary', 'box' or 'vertices'")
+        return self
+
+
+class Fixed(_Nodes):
     """All displacement components zero."""
 
     type: Literal["fixed"]
 
 
-class Displacement(_Where):
+class Displacement(_Nodes):
     """Prescribed displacement components; an omitted component stays free."""
 
     type: Literal["displacement"]
