@@ -10,39 +10,24 @@ at 36 um, before complete failure (the docs say why); the dissipated energy at c
 failure is checked on the beam broken along its ligament (tests/test_cohesive_ligament.py).
 """
 
-import importlib.util
-import json
 from pathlib import Path
 
 import numpy as np
 import pytest
-
-from fem_frac.app.cli import main
-from fem_frac.writers.history import read_history
+from notched_beam import run_case, study_script
+from notched_beam import study_runs as run_study
 
 ROOT = Path(__file__).parent.parent
 CASE = ROOT / "cases" / "notched_beam_cohesive.yaml"
 STUDY = ROOT / "studies" / "notched_beam_cohesive.yaml"
-SCRIPT = ROOT / "docs" / "fracture" / "cohesive_study.py"
 
 XM, NOTCH_TIP_Z, LIGAMENT_AREA, G_C = 0.085, 0.02, 0.02 * 0.005, 6.0
-
-
-def _script():
-    spec = importlib.util.spec_from_file_location("cohesive_study", SCRIPT)
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
 
 
 @pytest.fixture(scope="module")
 def default_run(tmp_path_factory):
     out = tmp_path_factory.mktemp("cohesive") / "beam"
-    assert main(["run", str(CASE), "-o", str(out), "-q"]) == 0
-    summary = json.loads((out / "summary.json").read_text())
-    history = {k: np.asarray(v, dtype=float)
-               for k, v in read_history(out / "history.csv").items()}
-    return out, summary, history, _script().read_run(out)
+    return (out, *run_case(CASE, out))
 
 
 def test_first_crack_opens_on_the_ligament_plane_at_the_notch_tip(default_run):
@@ -102,12 +87,7 @@ def test_crack_area_below_1_3_ligament_areas(default_run):
 
 @pytest.fixture(scope="module")
 def study_runs(tmp_path_factory):
-    out = tmp_path_factory.mktemp("cohesive_study")
-    assert main(["study", str(STUDY), "-o", str(out), "-q"]) == 0
-    script = _script()
-    runs = sorted((script.read_run(d) for d in (out / "runs").iterdir()), key=lambda r: -r["h"])
-    assert [r["h"] for r in runs] == [0.01, 0.005, 0.0025]
-    return runs
+    return run_study(STUDY, tmp_path_factory.mktemp("cohesive_study"))
 
 
 @pytest.mark.slow
@@ -122,7 +102,7 @@ def test_study_peak_load_converges(study_runs):
     h = [r["h"] for r in study_runs]
     peaks = [r["peak_load"] for r in study_runs]
     assert abs(peaks[0] - peaks[1]) > abs(peaks[1] - peaks[2])
-    order = _script().observed_order(h, peaks)
+    order = study_script().observed_order(h, peaks)
     assert order is not None and order > 0.5
 
 

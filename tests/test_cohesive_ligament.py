@@ -10,42 +10,23 @@ load converges and the dissipated energy at complete failure is G_c A within 10 
 size.
 """
 
-import importlib.util
-import json
 from pathlib import Path
 
 import numpy as np
 import pytest
-
-from fem_frac.app.cli import main
-from fem_frac.writers.history import read_history
+from notched_beam import run_case, study_script
+from notched_beam import study_runs as run_study
 
 ROOT = Path(__file__).parent.parent
 CASE = ROOT / "cases" / "notched_beam_ligament.yaml"
 STUDY = ROOT / "studies" / "notched_beam_ligament.yaml"
-SCRIPT = ROOT / "docs" / "fracture" / "cohesive_study.py"
 
 XM, TOP, LIGAMENT_AREA, G_C = 0.085, 0.04, 0.02 * 0.005, 6.0
 
 
-def _script():
-    spec = importlib.util.spec_from_file_location("cohesive_study", SCRIPT)
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
-
-
-def _run(out: Path, *options: str):
-    assert main(["run", str(CASE), "-o", str(out), "-q", *options]) == 0
-    summary = json.loads((out / "summary.json").read_text())
-    history = {k: np.asarray(v, dtype=float)
-               for k, v in read_history(out / "history.csv").items()}
-    return summary, history, _script().read_run(out)
-
-
 @pytest.fixture(scope="module")
 def gauss_run(tmp_path_factory):
-    return _run(tmp_path_factory.mktemp("ligament") / "beam")
+    return run_case(CASE, tmp_path_factory.mktemp("ligament") / "beam")
 
 
 def test_crack_lies_in_the_ligament_plane_and_covers_it(gauss_run):
@@ -82,8 +63,8 @@ def test_vertex_rule_keeps_the_load_line_shut(tmp_path):
     other point does: the dissipated energy is G_c (A - sum of those weights) exactly."""
     import meshio
 
-    _, history, run = _run(tmp_path / "vertices", "--set",
-                           "fracture.cohesive.quadrature=vertices")
+    _, history, run = run_case(CASE, tmp_path / "vertices", "--set",
+                               "fracture.cohesive.quadrature=vertices")
     assert abs(run["end_load"]) < 1e-9 * run["peak_load"]
     steps = sorted(p for p in (tmp_path / "vertices").glob("*_crack_*.vtu"))
     crack = meshio.read(steps[-1])
@@ -99,12 +80,7 @@ def test_vertex_rule_keeps_the_load_line_shut(tmp_path):
 
 @pytest.fixture(scope="module")
 def study_runs(tmp_path_factory):
-    out = tmp_path_factory.mktemp("ligament_study")
-    assert main(["study", str(STUDY), "-o", str(out), "-q"]) == 0
-    script = _script()
-    runs = sorted((script.read_run(d) for d in (out / "runs").iterdir()), key=lambda r: -r["h"])
-    assert [r["h"] for r in runs] == [0.01, 0.005, 0.0025]
-    return runs
+    return run_study(STUDY, tmp_path_factory.mktemp("ligament_study"))
 
 
 @pytest.mark.slow
@@ -116,7 +92,7 @@ def test_study_peak_load_converges(study_runs):
     h = [r["h"] for r in study_runs]
     peaks = [r["peak_load"] for r in study_runs]
     assert abs(peaks[0] - peaks[1]) > abs(peaks[1] - peaks[2])
-    order = _script().observed_order(h, peaks)
+    order = study_script().observed_order(h, peaks)
     assert order is not None and order > 0.5
 
 
