@@ -41,3 +41,13 @@ def study_runs(study: Path, out: Path) -> list[dict]:
     runs = sorted((script.read_run(d) for d in (out / "runs").iterdir()), key=lambda r: -r["h"])
     assert [r["h"] for r in runs] == [0.01, 0.005, 0.0025]
     return runs
+
+
+def assert_peak_load_converges(runs: list[dict], least_order: float = 0.5) -> None:
+    """The peak loads of three runs, coarse to fine: the differences shrink, with an observed
+    order above ``least_order``."""
+    h = [r["h"] for r in runs]
+    peaks = [r["peak_load"] for r in runs]
+    assert abs(peaks[0] - peaks[1]) > abs(peaks[1] - peaks[2])
+    order = study_script().observed_order(h, peaks)
+    assert order is not None and order > least_order
