@@ -151,8 +151,10 @@ def _fracture(case: Case) -> Stage:
     if f.protect:
         text += f"; {len(f.protect)} protected part(s)"
     law = f.cohesive_law
+    front = (", each front element against its own stress"
+             if law is not None and law.front_stress == "element" else "")
     text += (f"; faces cohesive ({law.law} softening, G_c {f.fracture_energy:g}), growing "
-             "from crack fronts" if law is not None else "; faces traction-free")
+             f"from crack fronts{front}" if law is not None else "; faces traction-free")
     return Stage("fracture", True, text)
 
 

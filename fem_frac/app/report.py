@@ -359,6 +359,9 @@ def _cohesive_lines(case: Case, mesh, materials, protected: np.ndarray) -> list[
     lines = [f"  cohesive   {law.law} law, G_c = {gc:.4g} {energy_unit}, "
              f"{_critical_opening(faces, k0)}, shear weight {law.shear_weight:g}, "
              f"initial stiffness {law.penalty:g} x E / h",
+             "  crack fronts checked against " + (
+                 "each element's own stress (front_stress: element)"
+                 if law.front_stress == "element" else "the smoothed stress"),
              f"  cohesive length l_cz = E G_c / sigma_t^2 = {lcz:.4g} {length_unit}"
              + ("" if uniform else " (with the smallest E of the regions)")]
     if not free.any():

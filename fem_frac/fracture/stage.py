@@ -141,6 +141,7 @@ class _Topology:
     front_normals: np.ndarray | None = None  # the crack's normal at tets on a front
     principal: tuple | None = None  # (stress, (sigma1, direction), smoothed) last asked
     planes: PlaneSites | None = None  # fracture.planes: where cracks may open
+    own: np.ndarray | None = None  # tets checked against their own stress (front_stress)
 
 
 def _topology(config: schema.Fracture, mesh: Mesh, smoothing, strict: bool) -> _Topology:
@@ -157,10 +158,13 @@ def _topology(config: schema.Fracture, mesh: Mesh, smoothing, strict: bool) -> _
         normals = front_normals(mesh, front)
     planes = plane_sites(mesh.points, mesh.tets, config.planes) if config.planes else None
     protected = protected_vertices(config, mesh, strict, planes)
+    own = None
+    if front is not None and config.cohesive_law.front_stress == "element":
+        own = front[mesh.tets].any(axis=1)  # the tets at a crack front
     return _Topology(mesh, smoothing, protected, star(mesh.tets, mesh.n_points), volumes,
                      float(np.median(pattern @ volumes)), on_crack,
                      np.zeros(mesh.n_points, dtype=bool), front, near, normals,
-                     planes=planes)
+                     planes=planes, own=own)
 
 
 class FractureStage:
@@ -309,11 +313,15 @@ class FractureStage:
 
     def principal(self, body: Body, topo: _Topology) -> tuple[np.ndarray, np.ndarray]:
         """Smoothed largest principal stress ``(m,)`` and its direction ``(m, 3)`` of the
-        body's state (the last one kept: the stage asks about the same state twice)."""
+        body's state (the last one kept: the stage asks about the same state twice); at a
+        cohesive crack's front with ``front_stress: element``, each tet's own."""
         stress = body.state.stress
         if topo.principal is not None and topo.principal[0] is stress:
             return topo.principal[1]
-        smoothed = smooth(topo.smoothing, cell_average(body.disc.space, stress))
+        own = cell_average(body.disc.space, stress)
+        smoothed = smooth(topo.smoothing, own)
+        if topo.own is not None:
+            smoothed = np.where(topo.own, own, smoothed)
         result = principal_stress(smoothed)
         topo.principal = (stress, result, smoothed)
         return result

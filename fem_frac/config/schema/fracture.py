@@ -84,12 +84,19 @@ class Cohesive(Section):
     a linear (P1) face, its corners (``vertices``: no traction oscillations on stiff faces)
     or three points inside it (``gauss``: every point of a crack that ends at a line held
     shut can still open; :mod:`fem_frac.cohesive.interface`). Quadratic faces always use six
-    Gauss points."""
+    Gauss points. ``front_stress``: the stress the elements at a crack's front are checked
+    against, the smoothed one like everywhere else (``smoothed``), or each element's own
+    (``element``): a front element then splits as soon as its own stress reaches the
+    strength, so the new faces take on at most the traction the law allows and the insertion
+    releases next to no energy; with the path free, unsmoothed stresses at the front let
+    cracks branch into a band, so ``element`` goes with ``planes``
+    (docs/fracture/cohesive_convergence.md measures both)."""
 
     law: Literal["linear", "exponential"] = "linear"
     shear_weight: Annotated[float, Field(gt=0.0, le=100.0)] = 1.0
     penalty: Annotated[float, Field(ge=1.0, le=1e4)] = 20.0
     quadrature: Literal["vertices", "gauss"] = "vertices"
+    front_stress: Literal["smoothed", "element"] = "smoothed"
 
 
 class Fracture(Section):
