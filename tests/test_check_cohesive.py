@@ -78,6 +78,23 @@ def test_fine_mesh_prints_no_warning(tmp_path, capsys):
     assert number(line(out, "cohesive length"), "sigma_t^2 =") == pytest.approx(LCZ, rel=1e-3)
     assert np.median(free_sizes(tmp_path, case)) <= LCZ / 2
     assert "warning" not in out
+    assert "crack fronts checked against the smoothed stress" in out
+
+
+def test_front_checked_against_its_own_stress(tmp_path, capsys):
+    case = bar(0.0025, fracture_energy=ENERGY, cohesive={"front_stress": "element"})
+    out = check(tmp_path, capsys, case)
+    assert "crack fronts checked against each element's own stress" in out
+    assert "each front element against its own stress" in line(out, "run   fracture")
+
+
+def test_front_stress_must_be_one_of_its_kinds(tmp_path, capsys):
+    case = bar(0.0025, fracture_energy=ENERGY, cohesive={"front_stress": "nodal"})
+    path = write_case(tmp_path / "case.yaml", case)
+    capsys.readouterr()
+    assert main(["check", str(path)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert "fracture.cohesive.front_stress" in err and "Traceback" not in err
 
 
 def test_regions_use_each_elements_own_modulus(tmp_path, capsys):

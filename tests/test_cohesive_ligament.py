@@ -5,9 +5,11 @@ Default size (5 mm = l_cz / 4, about 8 s): every crack face lies in the ligament
 (``fracture.planes``), the beam fails completely (the load falls to zero) and the law has
 then dissipated G_c over the ligament area, to round-off; the ledger balances. With the
 vertex rule the points on the load line, which stays shut, never dissipate: the shortfall is
-exactly their share of the faces' area. The slow test runs the three-mesh study: the peak
-load converges and the dissipated energy at complete failure is G_c A within 10 % at every
-size.
+exactly their share of the faces' area. The elements at the front are checked against their
+own stress (``cohesive.front_stress: element``), so the insertions release far less than with
+the smoothed stress. The slow tests run the three-mesh study: the peak load converges, the law
+has dissipated G_c A at complete failure at every size, and the external work (the work of
+fracture) tends to G_c A, within 10 % at l_cz / 8.
 """
 
 import numpy as np
@@ -75,6 +77,19 @@ def test_vertex_rule_keeps_the_load_line_shut(tmp_path):
                                G_C * (LIGAMENT_AREA - shut), rtol=1e-12)
 
 
+def test_front_checked_against_its_own_stress_releases_less(gauss_run, tmp_path):
+    """A front element checked against the smoothed stress, which averages in the unloaded
+    wake behind the front, splits late: its faces would carry more than the law allows, and
+    the excess is released at the insertion. Against its own stress it splits when that
+    reaches the strength (0.30 against 1.27 G_c A released in all, measured)."""
+    _, own, _ = gauss_run
+    _, smoothed, run = run_case(CASE, tmp_path / "smoothed", "--set",
+                                "fracture.cohesive.front_stress=smoothed")
+    assert abs(run["end_load"]) < 1e-9 * run["peak_load"]
+    assert own["fracture_energy"][-1] < 0.5 * smoothed["fracture_energy"][-1]
+    assert own["external_work"][-1] < smoothed["external_work"][-1]
+
+
 @pytest.fixture(scope="module")
 def study_runs(tmp_path_factory):
     return run_study(STUDY, tmp_path_factory.mktemp("ligament_study"))
@@ -82,8 +97,8 @@ def study_runs(tmp_path_factory):
 
 @pytest.mark.slow
 def test_study_peak_load_converges(study_runs):
-    """Peak loads at l_cz/2, l_cz/4, l_cz/8 (53.4, 39.3, 35.9 N measured): the differences
-    shrink; observed order above 0.5 (2.02 measured; the meshes are not similar from one
+    """Peak loads at l_cz/2, l_cz/4, l_cz/8 (53.4, 37.6, 35.9 N measured): the differences
+    shrink; observed order above 0.5 (3.14 measured; the meshes are not similar from one
     size to the next)."""
     assert all(r["status"] == "completed" for r in study_runs)
     assert_peak_load_converges(study_runs)
@@ -97,3 +112,14 @@ def test_study_dissipation_at_complete_failure(study_runs):
         assert abs(r["end_load"]) < 1e-3 * r["peak_load"]
         assert abs(r["dissipated"] - 1.0) < 0.1
         assert r["crack_area"] < 1.3
+
+
+@pytest.mark.slow
+def test_study_work_of_fracture_tends_to_the_fracture_energy(study_runs):
+    """The external work at complete failure over G_c A (2.52, 1.22, 1.07 measured): what the
+    insertions release on top of the law's G_c A shrinks with every refinement, and at
+    l_cz / 8 the work is G_c A within 10 %."""
+    excess = [r["work"] - r["dissipated"] for r in study_runs]
+    assert all(e > -1e-6 for e in excess)  # insertions release energy, never take it
+    assert excess[0] > excess[1] > excess[2]
+    assert abs(study_runs[-1]["work"] - 1.0) < 0.1

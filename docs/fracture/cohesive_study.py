@@ -8,7 +8,8 @@
 
 reads every run of the study (``runs/<id>/``: summary.json, history.csv, case.resolved.yaml and
 the last step of the crack surface series), prints the markdown table of the docs (peak load,
-displacement at the peak, dissipated energy and crack area over those of the ligament, where
+displacement at the peak, the energy the law dissipated and the external work over G_c times
+the ligament area, the crack area over the ligament's, where
 the crack faces lie, tets, wall time) and the observed order of the peak load, and writes
 ``docs/fracture/cohesive_load_displacement.png`` (``-o`` to write it elsewhere): the
 load-displacement curves of all meshes in one plot, and the crack faces of each mesh seen
@@ -104,6 +105,9 @@ def read_run(run_dir: Path) -> dict:
         "peak_delta": float(delta[peak]), "end_load": float(load[-1]),
         "end_delta": float(delta[-1]),
         "dissipated": float(hist["cohesive_dissipated"][-1]) / (gc * LIGAMENT_AREA),
+        # the area under the load-displacement curve, what an experiment's work of fracture
+        # measures (at complete failure: what the law dissipated and the insertions released)
+        "work": float(hist["external_work"][-1]) / (gc * LIGAMENT_AREA),
         "crack_area": float(hist["crack_area"][-1]) / LIGAMENT_AREA,
         "on_plane": float(area[on_plane].sum()) / LIGAMENT_AREA,
         "broken_on_plane": float(area[on_plane & (damage >= 1.0 - 1e-9)].sum()) / LIGAMENT_AREA,
@@ -131,7 +135,8 @@ def observed_order(h: list[float], q: list[float]) -> float | None:
 
 def table(runs: list[dict]) -> str:
     head = ("| element size (l_cz / n) | tets | run | peak load (N) | displacement at peak (um) "
-            "| load at end / peak | dissipated / (G_c A) | crack area / A | on the ligament "
+            "| load at end / peak | dissipated by the law / (G_c A) | external work / (G_c A) "
+            "| crack area / A | on the ligament "
             "plane / A (broken) | farthest face from the plane (mm) | wall s |")
     lines = [head, "|" + "---|" * (head.count("|") - 1)]
     for r in runs:
@@ -141,7 +146,8 @@ def table(runs: list[dict]) -> str:
             f"| {r['h'] * 1000:g} mm (l_cz / {0.02 / r['h']:g}) | {r['tets']:,} | {run} "
             f"| {r['peak_load']:.1f} | {r['peak_delta'] * 1e6:.1f} "
             f"| {abs(r['end_load']) / r['peak_load']:.3f} at {r['end_delta'] * 1e6:.0f} um "
-            f"| {r['dissipated']:.3f} | {r['crack_area']:.2f} "
+            f"| {r['dissipated']:.3f} | {r['work']:.2f} "
+            f"| {r['crack_area']:.2f} "
             f"| {r['on_plane']:.2f} ({r['broken_on_plane']:.2f}) | {r['max_offset'] * 1000:.1f} "
             f"| {r['wall_s']:.0f} |")
     return "\n".join(lines)
@@ -209,6 +215,16 @@ def main() -> None:
         diffs = ", ".join(f"{abs(a - b):.2f}" for a, b in zip(peaks, peaks[1:], strict=False))
         print(f"\npeak load, three finest: differences {diffs} N; observed order "
               + (f"{p_obs:.2f}" if p_obs is not None else "none (differences do not shrink)"))
+        broken = runs[-3:]
+        if all(abs(r["end_load"]) < 1e-3 * r["peak_load"] for r in broken):
+            # complete failure: the work of fracture against G_c A
+            work = [r["work"] for r in broken]
+            w_obs = observed_order(h, work)
+            print("external work at complete failure / (G_c A), three finest: "
+                  + ", ".join(f"{w:.3f}" for w in work) + "; differences "
+                  + ", ".join(f"{abs(a - b):.3f}" for a, b in zip(work, work[1:], strict=False))
+                  + "; observed order "
+                  + (f"{w_obs:.2f}" if w_obs is not None else "none (differences do not shrink)"))
     figure(runs, args.figure, args.xmax)
     print(f"figure: {args.figure}")
 
