@@ -28,11 +28,6 @@ class SolverError(FemFracError):
     """A numerical failure the user can act on (singular system, non-finite state)."""
 
 
-class SingularMatrixError(SolverError):
-    """A factorization that met a zero or negative pivot: the matrix is singular (a body not
-    fully held) or too ill-conditioned."""
-
-
 class Interrupted(BaseException):  # noqa: N818 (a signal, like KeyboardInterrupt)
     """A run stopped by a signal (SIGINT, SIGTERM) at ``step``; its output so far is
     kept. A BaseException, like KeyboardInterrupt, so that no handler of errors takes it."""

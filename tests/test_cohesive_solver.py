@@ -218,35 +218,3 @@ def test_explicit_stable_step_holds_the_cohesive_stiffness():
     np.testing.assert_allclose(ledger.cohesive_dissipated, ENERGY * AREA, rtol=1e-12)
     # measured 3.2e-5 (the shadow energy of central difference differs by (dt^2 / 8) a^T M a)
     assert ledger.relative_error < 1e-3
-
-
-def test_a_piece_held_only_by_cohesive_faces_is_named():
-    """The bar held at xmin only: its xmax half hangs on by the cohesive faces alone. They
-    hold it (one piece) while they are stiff; where a factorization finds it loose, the
-    error names the half and its six free motions. Both halves held: nothing to name."""
-    from fem_frac.errors import SingularMatrixError
-    from fem_frac.world.state import body_of
-    from fem_frac.world.unheld import explain_singular, held_only_by_faces
-
-    def body(conditions):
-        c = case([0.0, 1e-3])
-        c["boundary_conditions"] = conditions
-        setup = prepare(Case.model_validate(c), Path("."), StageTimer())
-        disc = rediscretize(setup.disc, cracked_bar(), StageTimer(), "cut")
-        state = initial_state(disc.problem, disc.law, disc.ops, None, disc.constrained)
-        return body_of(disc, state)
-
-    hanging = body([{"type": "fixed", "boundary": "xmin"}])
-    assert hanging.n_pieces == 1  # the faces hold
-    half = int(np.count_nonzero(hanging.mesh.points[hanging.mesh.tets].mean(axis=1)[:, 0]
-                                > 0.5))
-    assert held_only_by_faces(hanging) == [
-        (half, ["translation x", "translation y", "translation z", "rotation about x",
-                "rotation about y", "rotation about z"])]
-    why = explain_singular(hanging, SingularMatrixError("PARDISO: zero pivot"))
-    assert isinstance(why, SingularMatrixError)
-    assert f"1 piece(s) ({half:,} elements, translation x," in str(why)
-    assert "[PARDISO: zero pivot]" in str(why)
-    held = body([{"type": "fixed", "boundary": "xmin"}, {"type": "fixed", "boundary": "xmax"}])
-    assert held_only_by_faces(held) == []
-    assert explain_singular(held, SingularMatrixError("x")) is None

@@ -28,16 +28,16 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from ..config import schema
-from ..errors import CaseError, SingularMatrixError, SolverError
+from ..errors import CaseError, SolverError
 from ..mesh.mesh import Mesh, tet_volumes
 from ..plasticity.regions import selected_elements
+from ..solve.problem import free_rigid_modes
 from ..solve.state import StepInfo
 from ..solve.stepping import advance
 from ..timing import StageTimer
 from ..world.stage import Step
 from ..world.state import Body, World, body_of
 from ..world.transfer import carry, rediscretize
-from ..world.unheld import explain_singular, unsupported
 from ..writers.fields import cell_average
 from .front import continue_planes, crack_front, front_normals, near_crack
 from .planes import PlaneSites, normal_stress, plane_sites
@@ -238,14 +238,7 @@ class FractureStage:
                 disc, start = new.disc, new.state
                 topo = self._caches(new.mesh)
             seconds = time.perf_counter() - t0
-            try:
-                state, ledger, info = advance(disc.stepper, start, step.t, start_ledger,
-                                              step.n)
-            except SingularMatrixError as exc:
-                why = None if self.inertia else explain_singular(new, exc)
-                if why is None:
-                    raise
-                raise why from exc
+            state, ledger, info = advance(disc.stepper, start, step.t, start_ledger, step.n)
             resolve = info if resolve is None else resolve.then(info)
             batches.append(Batch(step.n, len(sites), mesh.n_points - body.mesh.n_points,
                                  float(sites.stress.max()), seconds,
@@ -270,7 +263,7 @@ class FractureStage:
         """Without inertia: pieces no support holds. Slivers (each below ``SLIVER`` of the
         body's volume, cut off where a crack meets coarse cells) are dropped from the mesh,
         with the energy they held (returned); a larger loose piece stops the run."""
-        loose = unsupported(body)
+        loose = _unsupported(body)
         if not loose:
             return body, 0.0
         volumes = np.bincount(body.labels, weights=tet_volumes(body.mesh.points,
@@ -385,6 +378,21 @@ class FractureStage:
             dropped.extend(sites.vertices[bad].tolist())
             sites = sites.subset(~bad)
         return sites, None, None, np.array(dropped, dtype=np.int64), None
+
+
+def _unsupported(body: Body) -> list[tuple[int, list[str]]]:
+    """The pieces no support holds, with the rigid motions each leaves free (without
+    inertia such a piece makes the solve singular)."""
+    space, dofs = body.disc.space, body.disc.constrained.dofs
+    node_fragment = np.empty(space.n_nodes, dtype=np.int64)
+    nodes = space.basis.element_dofs.T
+    node_fragment[nodes] = body.labels[:, None]
+    out = []
+    for k in range(body.n_pieces):
+        free = free_rigid_modes(space, dofs, np.flatnonzero(node_fragment == k))
+        if free:
+            out.append((k, free))
+    return out
 
 
 def _stored(body: Body) -> float:

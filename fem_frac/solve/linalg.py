@@ -15,9 +15,8 @@ stored factor. Backends (measured in docs/solvers.md, reproduced by benchmarks/s
 ``"auto"`` picks the first available of the direct solvers in that order (the measured
 order, fastest first); under mpiexec with several ranks it is PETSc (docs/solvers.md).
 
-Singular or indefinite matrices raise :class:`~fem_frac.errors.SingularMatrixError` (a
-:class:`~fem_frac.errors.SolverError`), found in three ways: a zero, negative or non-finite
-diagonal before factorizing; the backend's own pivot
+Singular or indefinite matrices raise :class:`~fem_frac.errors.SolverError`, found in three
+ways: a zero, negative or non-finite diagonal before factorizing; the backend's own pivot
 failure (PARDISO error -4, CHOLMOD's not-positive-definite error, SuperLU's exact singularity);
 and, because roundoff often leaves a tiny positive pivot where a null space is, a probe after
 factorizing: two solves (one step of inverse iteration, see ``_probe``) whose residual is of
@@ -38,7 +37,7 @@ from collections.abc import Callable
 import numpy as np
 import scipy.sparse as sp
 
-from ..errors import SingularMatrixError, SolverError
+from ..errors import SolverError
 
 # Fastest first, as measured (docs/solvers.md); "auto" takes the first available.
 PREFERENCE = ("pardiso", "cholmod", "superlu")
@@ -199,8 +198,8 @@ def _pardiso_release(pt: np.ndarray, iparm: np.ndarray) -> None:
 
 def _pardiso_check(error: int, stage: str) -> None:
     if error in _PARDISO_SINGULAR:
-        raise SingularMatrixError(SINGULAR_MESSAGE.format(
-            detail=f"PARDISO {stage}: zero or negative pivot, error {error}"))
+        raise SolverError(SINGULAR_MESSAGE.format(detail=f"PARDISO {stage}: zero or negative "
+                                                  f"pivot, error {error}"))
     if error != 0:
         reason = _PARDISO_ERRORS.get(error, "unknown error")
         raise SolverError(f"PARDISO {stage} failed: {reason} (error {error})")
@@ -233,7 +232,7 @@ def _factorize_cholmod(a: sp.csr_matrix) -> Solve:
         factor = cholesky(a.T.tocsc() if not sp.isspmatrix_csc(a) else a)
     except CholmodNotPositiveDefiniteError:
         detail = "CHOLMOD: zero or negative pivot"
-        raise SingularMatrixError(SINGULAR_MESSAGE.format(detail=detail)) from None
+        raise SolverError(SINGULAR_MESSAGE.format(detail=detail)) from None
     return factor.solve_A
 
 
@@ -247,7 +246,7 @@ def _factorize_superlu(a: sp.csr_matrix) -> Solve:
         # (docs/solvers.md); the "symmetric mode" orderings fill more.
         lu = splu(a.tocsc(), permc_spec=SUPERLU_ORDERING)
     except RuntimeError as err:  # "Factor is exactly singular"
-        raise SingularMatrixError(SINGULAR_MESSAGE.format(detail=f"SuperLU: {err}")) from None
+        raise SolverError(SINGULAR_MESSAGE.format(detail=f"SuperLU: {err}")) from None
     return lu.solve
 
 
@@ -303,7 +302,7 @@ def _check_matrix(a: sp.csr_matrix) -> None:
     diagonal = a.diagonal()
     bad = np.flatnonzero(~(diagonal > 0))
     if bad.size:
-        raise SingularMatrixError(SINGULAR_MESSAGE.format(
+        raise SolverError(SINGULAR_MESSAGE.format(
             detail=f"{bad.size} zero or negative diagonal entries, first at row {bad[0]}"))
 
 
@@ -331,7 +330,7 @@ def _probe(a: sp.csr_matrix, solve: Solve, method: str) -> float:
             "orders of magnitude than double precision holds (check the units and the "
             "material constants)")
     if not residual <= PROBE_TOLERANCE:
-        raise SingularMatrixError(SINGULAR_MESSAGE.format(
+        raise SolverError(SINGULAR_MESSAGE.format(
             detail=f"{method}: a probe solve has relative residual {residual:.1e} > "
                    f"{PROBE_TOLERANCE:g}"))
     return residual

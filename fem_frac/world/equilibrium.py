@@ -4,12 +4,11 @@ from __future__ import annotations
 
 from dataclasses import dataclass, replace
 
-from ..errors import SingularMatrixError, SolverError
+from ..errors import SolverError
 from ..solve.state import StepInfo
 from ..solve.stepping import advance
 from .stage import Step
 from .state import World
-from .unheld import explain_singular
 
 
 @dataclass(frozen=True, eq=False)
@@ -55,13 +54,8 @@ class EquilibriumStage:
             state, ledger, info = advance(body.disc.stepper, body.state, step.t,
                                           world.ledger, step.n, keep)
         except SolverError as exc:  # no convergence, a non-finite state: what converged stays
-            why = (explain_singular(body, exc) if isinstance(exc, SingularMatrixError)
-                   and not body.disc.stepper.inertia else None)
-            if why is None:
-                exc.substeps = tuple(kept)
-                raise
-            why.substeps = tuple(kept)
-            raise why from exc
+            exc.substeps = tuple(kept)
+            raise
         event = Equilibrated(info.iterations, info.residual, info.solves,
                              info.factorizations, info.cutbacks, tuple(kept))
         return replace(world, t=step.t, body=body.with_state(state), ledger=ledger), event
