@@ -187,3 +187,18 @@ def test_mass_solve_matches_the_factorization(order):
     x = mass_solve(mass, constrained, rhs)
     assert np.linalg.norm(m @ x - rhs) <= MASS_RTOL * np.linalg.norm(rhs)
     assert np.abs(x - exact).max() <= 1e-11 * np.abs(exact).max()
+
+
+def test_the_mass_solve_benchmark_runs():
+    """benchmarks/mass_solve.py still runs against the code it times (a small cube)."""
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    script = Path(__file__).parent.parent / "benchmarks" / "mass_solve.py"
+    out = subprocess.run([sys.executable, str(script), "--cells", "4", "--repeats", "1"],
+                         capture_output=True, text=True, timeout=120)
+    assert out.returncode == 0, out.stderr[-2000:]
+    row = out.stdout.strip().splitlines()[-1].split("|")
+    assert row[1].strip() == "P1" and row[2].strip() == "384"
+    assert float(row[-2]) < 1e-11  # the two solutions agree
