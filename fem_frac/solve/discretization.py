@@ -22,6 +22,7 @@ from ..plasticity.regions import ElementMaterials, element_materials
 from ..timing import StageTimer
 from . import integrators
 from .constrained import Constrained
+from .linalg import Factorization
 from .problem import Problem, build_problem, free_rigid_modes
 from .stable_step import ExplicitLimit, stable_limit
 from .state import Operators
@@ -106,6 +107,7 @@ def discretize(recipe: Recipe, mesh: Mesh, timer: StageTimer, strict: bool = Tru
     else:
         stepper = ImplicitStepper(problem, law, ops, scheme(recipe.analysis, recipe.dt),
                                   recipe.analysis.equilibrium, constrained)
+        stepper.seed = _seed(previous, space, ops, constrained)
     return Discretization(recipe, mesh, space, problem, materials, law, ops, constrained,
                           stepper, limit)
 
@@ -124,6 +126,25 @@ def _reconnected(recipe: Recipe, space: Space, tangent: np.ndarray, previous: tu
         return None
     return reconnect(old.ops.strain_operator, old.ops.stiffness, tangent, space,
                      np.asarray(old.mesh.tets), np.asarray(space.mesh.tets), changed)
+
+
+def _seed(previous: tuple | None, space: Space, ops: Operators, constrained: Constrained):
+    """``(factorization, tie)`` of the ``previous`` discretization for a stepper on a mesh a
+    crack insertion made from it (:mod:`fem_frac.solve.bordered`), ``None`` where it does
+    not apply: no factorization made there yet, cohesive faces (whose secant stiffness
+    changes the iteration matrix anyway), P2 (mid-edge nodes renumbered), or a free dof
+    that copies a constrained one."""
+    if previous is None or ops.interface is not None or space.order != 1:
+        return None
+    old, node_map = previous
+    factor = old.stepper.factor if isinstance(old.stepper, ImplicitStepper) else None
+    if not isinstance(factor, Factorization) or old.ops.interface is not None:
+        return None  # none made yet, or PETSc's (which keeps its own)
+    dofs = (3 * np.asarray(node_map, dtype=np.int64)[:, None] + np.arange(3)).ravel()
+    index = np.full(old.space.n_dofs, -1, dtype=np.int64)
+    index[old.constrained.free] = np.arange(old.constrained.free.size)
+    tie = index[dofs[constrained.free]]
+    return (factor, tie) if np.all(tie >= 0) else None
 
 
 def _initial_cohesive_stiffness(ops: Operators) -> sp.csr_matrix | None:

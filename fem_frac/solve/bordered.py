@@ -1,0 +1,103 @@
+"""Solves with the Jacobian of a mesh a crack insertion made, through the factorization of
+the mesh before it (no refactorization per insertion).
+
+A crack insertion gives some vertices copies; elements keep their geometry and material,
+so their matrices do not change, only the dofs they are scattered to. Let ``tie`` map every
+free dof of the new mesh to the free dof of the *base* mesh it copies (several new dofs may
+tie to one base dof: a vertex and its copies), ``E (n', n)`` the matrix of that map
+(``E[i, tie[i]] = 1``) and ``F (n', m)`` the unit columns of the ``m`` *copies*: every new
+dof tied to a base dof except the first one. ``T = [E, F]`` is square and invertible, and
+because tying the copies together gives back the base mesh,
+
+    T^T A' T = [[A, C], [C^T, D]],    A = E^T A' E (the base Jacobian),
+                                      C = E^T A' F (n x m),  D = F^T A' F (m x m).
+
+With the base factorization of ``A``, ``G = A^-1 C`` (``m`` back-solves at once) and the
+Cholesky factor of the Schur complement ``S = D - C^T G``, a solve ``A' x = b`` is
+
+    y = A^-1 E^T b,   z = S^-1 (F^T b - C^T y),   w = y - G z,   x = E w + F z
+
+(one back-solve with the base factor and small dense work). Exact, not an iteration: the
+answer is the direct solve's to round-off. The same base serves a sequence of insertions,
+``tie`` composed through the meshes between; ``m`` grows with them, and so does the cost of
+``G`` (``m`` back-solves per new mesh).
+
+Policy (:func:`bordered_factor`): while building ``G`` and ``S`` costs less than
+``PAYS`` times what the base factorization cost, keep the base; past that (or where the tie
+does not cover the base's free dofs one-to-many, or ``S`` is not positive definite: a piece
+the new faces leave loose), return ``None`` and let the caller factorize afresh (which
+reports a singular matrix properly).
+"""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+import scipy.linalg as la
+import scipy.sparse as sp
+
+from .linalg import Factorization
+
+# Keep the base factorization while a bordered set-up costs less than this share of it.
+PAYS = 0.5
+# A Schur complement pivot below this share of the largest diagonal of D: singular.
+SINGULAR = 1e-12
+
+
+def bordered_factor(base: Factorization, tie: np.ndarray,
+                    matrix: sp.csr_matrix) -> Factorization | None:
+    """A factorization of ``matrix`` (the new free-dof Jacobian, ``(n', n')``) through
+    ``base`` (a :class:`Factorization` of the base mesh's, or a bordered one, whose base is
+    then used with the ties composed) and ``tie (n',)``: the free dof of ``base``'s matrix
+    each new free dof copies. ``None`` where the module's policy says to refactorize."""
+    root, budget = base, getattr(base, "budget", base.factor_time)
+    if hasattr(base, "tie"):  # compose with the meshes between
+        root, tie = base.root, base.tie[tie]
+    start = time.perf_counter()
+    n = root.n
+    tie = np.asarray(tie, dtype=np.int64)
+    if tie.size < n or np.any(np.bincount(tie, minlength=n) == 0) or tie.max() >= n:
+        return None
+    # the first new dof tied to each base dof represents it; the others are copies
+    order = np.argsort(tie, kind="stable")
+    first = np.r_[True, tie[order][1:] != tie[order][:-1]]
+    copies = np.sort(order[~first])
+    m = copies.size
+    a = sp.csr_matrix(matrix)
+    tied = sp.csr_matrix((np.ones(tie.size), (tie, np.arange(tie.size))),
+                         shape=(n, tie.size))  # E^T
+    c = (tied @ a[:, copies]).toarray()  # (n, m)
+    d = a[copies][:, copies].toarray()
+    g = root.solve(c) if m else np.zeros((n, 0))
+    s = d - c.T @ g
+    cho = None
+    if m:
+        try:
+            cho = la.cho_factor(s, lower=True)
+        except la.LinAlgError:
+            return None
+        # a pivot lost to round-off is a singular S too (as the direct solve's probe finds)
+        if np.min(np.diag(cho[0])) ** 2 <= SINGULAR * np.max(np.abs(np.diag(d))):
+            return None
+    seconds = time.perf_counter() - start
+    if seconds > PAYS * budget:
+        return None
+
+    def solve(b: np.ndarray) -> np.ndarray:
+        b = np.asarray(b, dtype=np.float64)
+        one = b.ndim == 1
+        b2 = b[:, None] if one else b
+        y = root.solve(np.asarray(tied @ b2))
+        x = y[tie]
+        if m:
+            z = la.cho_solve(cho, b2[copies] - c.T @ y)
+            x = (y - g @ z)[tie]
+            x[copies] += z
+        return x[:, 0] if one else x
+
+    out = Factorization("bordered " + root.method, tie.size, solve)
+    out.factor_time = seconds
+    out.probe_residual = root.probe_residual
+    out.root, out.tie, out.copies, out.budget = root, tie, m, budget
+    return out

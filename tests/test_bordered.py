@@ -1,0 +1,96 @@
+"""Solves through the previous mesh's factorization after a crack insertion
+(fem_frac.solve.bordered): the same answers as a direct solve of the new stiffness, through a
+chain of insertions, and a refusal where a crack cuts a piece loose."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import scipy.sparse.linalg as spla
+
+from fem_frac.fem.elasticity import stiffness
+from fem_frac.fem.space import build_space
+from fem_frac.fem.tensors import isotropic_tangent
+from fem_frac.fracture.topology import open_crack
+from fem_frac.solve.bordered import bordered_factor
+from fem_frac.solve.linalg import factorize
+from meshes import structured_box
+
+TANGENT = isotropic_tangent(100.0, 0.25)
+
+
+def system(mesh):
+    """The stiffness of ``mesh`` on its free dofs (the nodes on x = 0 held) and those dofs."""
+    space = build_space(mesh, 1)
+    k = stiffness(space, TANGENT).tocsr()
+    held = np.flatnonzero(np.abs(mesh.points[:, 0]) < 1e-12)
+    free = np.setdiff1d(np.arange(space.n_dofs), (3 * held[:, None] + np.arange(3)).ravel())
+    return k[free][:, free].tocsr(), free
+
+
+def tie(old_free, new_free, node_map, n_old_dofs):
+    """The old free dof each new free dof copies."""
+    index = np.full(n_old_dofs, -1)
+    index[old_free] = np.arange(old_free.size)
+    dofs = (3 * node_map[:, None] + np.arange(3)).ravel()
+    return index[dofs[new_free]]
+
+
+def crack(mesh, x):
+    """Split the interior vertices on the plane x = ``x`` (a crack across, its edges short of
+    the sides so the body holds together)."""
+    p = mesh.points
+    on = np.abs(p[:, 0] - x) < 1e-12
+    inside = on & (p[:, 1] > 1e-12) & (p[:, 1] < 1 - 1e-12) & (p[:, 2] > 1e-12) \
+        & (p[:, 2] < 1 - 1e-12)
+    vertices = np.flatnonzero(inside)
+    return open_crack(mesh, vertices, np.tile([1.0, 0, 0], (vertices.size, 1)))
+
+
+@pytest.fixture(scope="module")
+def chain():
+    """A cube of tets, then two insertions: the meshes, their systems and their ties."""
+    m0 = structured_box((6, 4, 4))
+    m1, t1 = crack(m0, 0.5)
+    m2, t2 = crack(m1, 2 / 6)
+    (a0, f0), (a1, f1), (a2, f2) = system(m0), system(m1), system(m2)
+    return [(a0, None), (a1, tie(f0, f1, np.asarray(t1.node_map), 3 * m0.n_points)),
+            (a2, tie(f1, f2, np.asarray(t2.node_map), 3 * m1.n_points))]
+
+
+def test_solves_as_the_new_stiffness_does_through_a_chain_of_insertions(chain):
+    (a0, _), (a1, tie1), (a2, tie2) = chain
+    base = factorize(a0)
+    base.factor_time = 1e9  # the policy aside: always keep the base here
+    rng = np.random.default_rng(0)
+    one = bordered_factor(base, tie1, a1)
+    assert one is not None and one.copies == a1.shape[0] - a0.shape[0] > 0
+    two = bordered_factor(one, tie2, a2)
+    assert two is not None and two.root is base
+    assert two.copies == a2.shape[0] - a0.shape[0] > one.copies
+    for a, f in ((a1, one), (a2, two)):
+        b = rng.standard_normal((a.shape[0], 3))
+        exact = spla.spsolve(a.tocsc(), b)
+        for x in (f.solve(b), np.stack([f.solve(b[:, k]) for k in range(3)], axis=1)):
+            # exact to round-off: cond(A) ~ 1e3 here
+            assert np.abs(x - exact).max() <= 1e-10 * np.abs(exact).max()
+
+
+def test_refactorizes_when_keeping_the_base_stops_paying(chain):
+    (a0, _), (a1, tie1), _ = chain
+    base = factorize(a0)
+    base.factor_time = 0.0  # any set-up costs more than the base did
+    assert bordered_factor(base, tie1, a1) is None
+
+
+def test_a_piece_cut_loose_is_refused():
+    """A crack right across the cube leaves the far part free: the Schur complement is
+    singular, and the caller's fresh factorization is the one to say so."""
+    m0 = structured_box((4, 3, 3))
+    on = np.flatnonzero(np.abs(m0.points[:, 0] - 0.5) < 1e-12)
+    m1, t1 = open_crack(m0, on, np.tile([1.0, 0, 0], (on.size, 1)))
+    (a0, f0), (a1, f1) = system(m0), system(m1)
+    base = factorize(a0)
+    base.factor_time = 1e9
+    assert bordered_factor(base, tie(f0, f1, np.asarray(t1.node_map), 3 * m0.n_points),
+                           a1) is None
