@@ -12,6 +12,7 @@ from fem_frac.fem.elasticity import stiffness
 from fem_frac.fem.space import build_space
 from fem_frac.fem.tensors import isotropic_tangent
 from fem_frac.fracture.topology import open_crack
+from fem_frac.solve import bordered
 from fem_frac.solve.bordered import bordered_factor
 from fem_frac.solve.linalg import factorize
 from meshes import structured_box
@@ -58,10 +59,10 @@ def chain():
             (a2, tie(f1, f2, np.asarray(t2.node_map), 3 * m1.n_points))]
 
 
-def test_solves_as_the_new_stiffness_does_through_a_chain_of_insertions(chain):
+def test_solves_as_the_new_stiffness_does_through_a_chain_of_insertions(chain, monkeypatch):
     (a0, _), (a1, tie1), (a2, tie2) = chain
+    monkeypatch.setattr(bordered, "COPIES", 1e9)  # the policy aside: keep the base here
     base = factorize(a0)
-    base.factor_time = 1e9  # the policy aside: always keep the base here
     rng = np.random.default_rng(0)
     one = bordered_factor(base, tie1, a1)
     assert one is not None and one.copies == a1.shape[0] - a0.shape[0] > 0
@@ -76,21 +77,26 @@ def test_solves_as_the_new_stiffness_does_through_a_chain_of_insertions(chain):
             assert np.abs(x - exact).max() <= 1e-10 * np.abs(exact).max()
 
 
-def test_refactorizes_when_keeping_the_base_stops_paying(chain):
+def test_refactorizes_past_its_share_of_copies(chain, monkeypatch):
+    """Up to COPIES n^(1/3) copied dofs the base is kept, past that a fresh factorization is
+    asked for (the same answer every time: no clock in the rule)."""
     (a0, _), (a1, tie1), _ = chain
     base = factorize(a0)
-    base.factor_time = 0.0  # any set-up costs more than the base did
+    m = a1.shape[0] - a0.shape[0]
+    monkeypatch.setattr(bordered, "COPIES", m / a0.shape[0] ** (1 / 3))
+    assert bordered_factor(base, tie1, a1) is not None
+    monkeypatch.setattr(bordered, "COPIES", 0.99 * m / a0.shape[0] ** (1 / 3))
     assert bordered_factor(base, tie1, a1) is None
 
 
-def test_a_piece_cut_loose_is_refused():
+def test_a_piece_cut_loose_is_refused(monkeypatch):
     """A crack right across the cube leaves the far part free: the Schur complement is
     singular, and the caller's fresh factorization is the one to say so."""
     m0 = structured_box((4, 3, 3))
     on = np.flatnonzero(np.abs(m0.points[:, 0] - 0.5) < 1e-12)
     m1, t1 = open_crack(m0, on, np.tile([1.0, 0, 0], (on.size, 1)))
     (a0, f0), (a1, f1) = system(m0), system(m1)
+    monkeypatch.setattr(bordered, "COPIES", 1e9)
     base = factorize(a0)
-    base.factor_time = 1e9
     assert bordered_factor(base, tie(f0, f1, np.asarray(t1.node_map), 3 * m0.n_points),
                            a1) is None

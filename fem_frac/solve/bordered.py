@@ -22,11 +22,15 @@ answer is the direct solve's to round-off. The same base serves a sequence of in
 ``tie`` composed through the meshes between; ``m`` grows with them, and so does the cost of
 ``G`` (``m`` back-solves per new mesh).
 
-Policy (:func:`bordered_factor`): while building ``G`` and ``S`` costs less than
-``PAYS`` times what the base factorization cost, keep the base; past that (or where the tie
-does not cover the base's free dofs one-to-many, or ``S`` is not positive definite: a piece
-the new faces leave loose), return ``None`` and let the caller factorize afresh (which
-reports a singular matrix properly).
+Policy (:func:`bordered_factor`), deterministic so that a run repeats itself to the bit:
+keep the base while ``m <= COPIES * n^(1/3)`` for ``n`` base free dofs. The set-up (``m``
+back-solves at once) grows with ``m``, a fresh factorization with ``n`` faster than a
+back-solve does; ``COPIES`` = 2.5 puts the limit where the set-up costs half a fresh
+factorization in ``benchmarks/fracture.py`` (``m`` = 49 at 7,767 dofs, 96 at 56,484:
+measured 2026-12-02, docs/performance.md). Past it (or where the tie does not cover the
+base's free dofs, or ``S`` is not positive definite: a piece the new faces leave loose),
+:func:`bordered_factor` returns ``None`` and the caller factorizes afresh (which reports a
+singular matrix properly).
 """
 
 from __future__ import annotations
@@ -39,8 +43,8 @@ import scipy.sparse as sp
 
 from .linalg import Factorization
 
-# Keep the base factorization while a bordered set-up costs less than this share of it.
-PAYS = 0.5
+# Keep the base factorization for up to this many copied dofs per cube root of its size.
+COPIES = 2.5
 # A Schur complement pivot below this share of the largest diagonal of D: singular.
 SINGULAR = 1e-12
 
@@ -51,7 +55,7 @@ def bordered_factor(base: Factorization, tie: np.ndarray,
     ``base`` (a :class:`Factorization` of the base mesh's, or a bordered one, whose base is
     then used with the ties composed) and ``tie (n',)``: the free dof of ``base``'s matrix
     each new free dof copies. ``None`` where the module's policy says to refactorize."""
-    root, budget = base, getattr(base, "budget", base.factor_time)
+    root = base
     if hasattr(base, "tie"):  # compose with the meshes between
         root, tie = base.root, base.tie[tie]
     start = time.perf_counter()
@@ -64,6 +68,8 @@ def bordered_factor(base: Factorization, tie: np.ndarray,
     first = np.r_[True, tie[order][1:] != tie[order][:-1]]
     copies = np.sort(order[~first])
     m = copies.size
+    if m > COPIES * n ** (1.0 / 3.0):
+        return None
     a = sp.csr_matrix(matrix)
     tied = sp.csr_matrix((np.ones(tie.size), (tie, np.arange(tie.size))),
                          shape=(n, tie.size))  # E^T
@@ -81,8 +87,6 @@ def bordered_factor(base: Factorization, tie: np.ndarray,
         if np.min(np.diag(cho[0])) ** 2 <= SINGULAR * np.max(np.abs(np.diag(d))):
             return None
     seconds = time.perf_counter() - start
-    if seconds > PAYS * budget:
-        return None
 
     def solve(b: np.ndarray) -> np.ndarray:
         b = np.asarray(b, dtype=np.float64)
@@ -99,5 +103,5 @@ def bordered_factor(base: Factorization, tie: np.ndarray,
     out = Factorization("bordered " + root.method, tie.size, solve)
     out.factor_time = seconds
     out.probe_residual = root.probe_residual
-    out.root, out.tie, out.copies, out.budget = root, tie, m, budget
+    out.root, out.tie, out.copies = root, tie, m
     return out

@@ -3,10 +3,10 @@
 One implicit form covers static, quasi-static and implicit dynamic steps (see
 :mod:`fem_frac.solve.integrators`); explicit central difference has its own update. Each
 step evaluates the material law at every quadrature point through a strain operator built
-once, and solves with a matrix factorized once per topology (or, after a crack insertion,
-through the previous topology's factorization: :mod:`fem_frac.solve.bordered`) unless full
-Newton asks for the consistent tangent. :func:`advance` takes one interval of the time grid
-(substeps, cutbacks) and keeps the energy ledger (:mod:`fem_frac.solve.energy`).
+once, and solves with a matrix factorized once per topology (:mod:`fem_frac.solve.bordered`
+reuses it across crack insertions) unless full Newton asks for the consistent tangent.
+:func:`advance` takes one interval of the time grid (substeps, cutbacks) and keeps the
+energy ledger (:mod:`fem_frac.solve.energy`).
 """
 
 from __future__ import annotations
@@ -92,10 +92,9 @@ class ImplicitStepper:
     """Steps of the implicit form (static, quasi-static, Newmark, HHT-alpha).
 
     ``modified_newton`` and ``single_pass`` solve with the elastic Jacobian factorized here,
-    once (after a crack insertion, through the previous mesh's factorization while that
-    pays: :mod:`fem_frac.solve.bordered`); ``newton`` refactorizes the consistent tangent
-    every iteration. With cohesive
-    crack faces the iteration matrix of the first two also holds the faces' secant
+    once (after an insertion, through the old mesh's: :mod:`fem_frac.solve.bordered`);
+    ``newton`` refactorizes the consistent tangent every iteration. With cohesive crack
+    faces the iteration matrix of the first two also holds the faces' secant
     stiffness at the start of the step (never negative: the iteration contracts while the
     structure is stable), refactorized when damage has changed it. Full Newton iterates
     with the faces' consistent tangent and a backtracking line search (the law's kinks, at
@@ -119,9 +118,7 @@ class ImplicitStepper:
         # K's columns of the constrained dofs: the force of moving prescribed values
         self.fixed_columns = ops.stiffness.tocsc()[:, constrained.dofs].tocsr()
         self.factor = None  # elastic Jacobian's factorization, made on first use
-        # after a crack insertion: (the previous mesh's factorization, the previous free
-        # dof each free dof copies), to solve through it (fem_frac.solve.bordered)
-        self.seed = None
+        self.seed = None  # after an insertion: (old factorization, tie) (solve.bordered)
         self.tangents = None  # full Newton's refactorizer, made on first use
         self.secant = None  # the cohesive secant stiffness ``self.factor`` holds
         # the step whose (sub-)steps iterate with full Newton since modified Newton
@@ -144,8 +141,7 @@ class ImplicitStepper:
         if self.factor is None and self.seed is not None:
             from .bordered import bordered_factor
 
-            base, tie = self.seed
-            self.seed = None
+            (base, tie), self.seed = self.seed, None
             free = self.constrained.free
             self.factor = bordered_factor(base, tie, self.elastic_jacobian[free][:, free])
         if self.factor is None:
