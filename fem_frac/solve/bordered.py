@@ -24,8 +24,8 @@ answer is the direct solve's to round-off. The same base serves a sequence of in
 
 Policy (:func:`bordered_factor`), deterministic so that a run repeats itself to the bit:
 keep the base while ``m <= COPIES * n^(1/3)`` for ``n`` base free dofs. The set-up (``m``
-back-solves at once) grows with ``m``, a fresh factorization with ``n`` faster than a
-back-solve does; ``COPIES`` = 2.5 puts the limit where the set-up costs half a fresh
+back-solves at once) grows with ``m``; a fresh factorization outgrows a back-solve as ``n``
+grows; ``COPIES`` = 2.5 puts the limit where the set-up costs half a fresh
 factorization in ``benchmarks/fracture.py`` (``m`` = 49 at 7,767 dofs, 96 at 56,484:
 measured 2026-12-02, docs/performance.md). Past it (or where the tie does not cover the
 base's free dofs, or ``S`` is not positive definite: a piece the new faces leave loose),
