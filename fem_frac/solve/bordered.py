@@ -61,8 +61,8 @@ def bordered_factor(base: Factorization, tie: np.ndarray,
     start = time.perf_counter()
     n = root.n
     tie = np.asarray(tie, dtype=np.int64)
-    if tie.size < n or np.any(np.bincount(tie, minlength=n) == 0) or tie.max() >= n:
-        return None
+    if tie.max() >= n or np.any(np.bincount(tie, minlength=n) == 0):
+        return None  # not every base dof has a copy left, or one that is not the base's
     # the first new dof tied to each base dof represents it; the others are copies
     order = np.argsort(tie, kind="stable")
     first = np.r_[True, tie[order][1:] != tie[order][:-1]]
@@ -93,8 +93,9 @@ def bordered_factor(base: Factorization, tie: np.ndarray,
         one = b.ndim == 1
         b2 = b[:, None] if one else b
         y = root.solve(np.asarray(tied @ b2))
-        x = y[tie]
-        if m:
+        if not m:
+            x = y[tie]
+        else:
             z = la.cho_solve(cho, b2[copies] - c.T @ y)
             x = (y - g @ z)[tie]
             x[copies] += z

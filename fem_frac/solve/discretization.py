@@ -143,7 +143,9 @@ def _seed(previous: tuple | None, space: Space, ops: Operators, constrained: Con
     factor = old.stepper.factor if isinstance(old.stepper, ImplicitStepper) else None
     if not isinstance(factor, Factorization) or old.ops.interface is not None:
         return None  # none made yet, or PETSc's (which keeps its own)
-    dofs = (3 * np.asarray(node_map, dtype=np.int64)[:, None] + np.arange(3)).ravel()
+    from ..fracture.remap import dof_transfer
+
+    dofs = dof_transfer(node_map)
     index = np.full(old.space.n_dofs, -1, dtype=np.int64)
     index[old.constrained.free] = np.arange(old.constrained.free.size)
     tie = index[dofs[constrained.free]]
