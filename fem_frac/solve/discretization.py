@@ -143,9 +143,8 @@ def _seed(previous: tuple | None, space: Space, ops: Operators, constrained: Con
     factor = old.stepper.factor if isinstance(old.stepper, ImplicitStepper) else None
     if not isinstance(factor, Factorization) or old.ops.interface is not None:
         return None  # none made yet, or PETSc's (which keeps its own)
-    from ..fracture.remap import dof_transfer
-
-    dofs = dof_transfer(node_map)
+    # the vector dofs of the node map (fracture.remap.dof_transfer, a layer above this one)
+    dofs = (3 * np.asarray(node_map, dtype=np.int64)[:, None] + np.arange(3)).ravel()
     index = np.full(old.space.n_dofs, -1, dtype=np.int64)
     index[old.constrained.free] = np.arange(old.constrained.free.size)
     tie = index[dofs[constrained.free]]
