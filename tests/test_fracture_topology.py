@@ -317,3 +317,30 @@ def test_second_crack_extends_crack_group():
         old, _nearest(old, [0.5, 1 / 3, 1 / 3]), [1.0, 0.0, 0.0], separate=False
     )
     assert bare.n_points == old.n_points + 1
+
+
+@pytest.mark.parametrize("count", [1, 5, 9])
+def test_matched_faces_after_a_split_are_those_matched_afresh(count, monkeypatch):
+    """open_crack keeps the matched faces of its new tables from the old one's (no sort):
+    the same pairs and local corners as matching the new table's faces afresh, including
+    where the separation gives vertices copies (a bar cut through: count 9)."""
+    from fem_frac.fracture import topology
+    from fem_frac.fracture.topology import _face_pairs, _match_faces
+
+    old = structured_box((8, 2, 2), lengths=(2.0, 0.5, 0.5))
+    plane = np.nonzero(np.abs(old.points[:, 0] - 1.0) < 1e-12)[0][:count]
+    _face_pairs(old.tets)  # the old table's pairs, as a run has them
+    new, tr = open_crack(old, plane, np.tile([1.0, 0.0, 0.0], (len(plane), 1)))
+    assert new.n_points > old.n_points
+
+    def as_set(pairs):
+        r1, r2, l1, l2 = pairs
+        return {(a, b, *x, *y) for a, b, x, y in zip(r1, r2, map(tuple, l1), map(tuple, l2),
+                                                      strict=True)}
+
+    with monkeypatch.context() as m:  # the new table's pairs are kept, not computed
+        m.setattr(topology, "_match_faces", None)
+        kept = _face_pairs(new.tets)
+    fresh = _match_faces(np.asarray(new.tets))
+    assert as_set(kept) == as_set(fresh)
+    assert len(kept[0]) == len(fresh[0]) < len(_match_faces(np.asarray(old.tets))[0])

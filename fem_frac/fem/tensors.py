@@ -81,6 +81,57 @@ def principal_values(m: np.ndarray) -> np.ndarray:
         return np.moveaxis(np.linalg.eigvalsh(matrices_from_mandel(m)), -1, 0)
 
 
+#: |cross product|^2 / |row|^4 of ``A - lambda I`` below which its rank is taken as 1
+RANK_ONE = 1e-20
+
+
+def largest_principal(m: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The largest eigenvalue ``(...)`` and a unit eigenvector ``(..., 3)`` of Mandel
+    tensors ``(6, ...)`` in closed form, a few array operations instead of one LAPACK call
+    per tensor (about 5x cheaper than :func:`principal` for 1e5 tensors).
+
+    The value by the trigonometric solution of the characteristic cubic of the deviator
+    (O. K. Smith, Comm. ACM 4(4), 1961): its error is a few ulps of the deviator's size
+    whatever the gap to the second value, but it is not :func:`principal`'s to the bit.
+    The vector: the largest cross product of two rows of ``A - lambda I``; where the value
+    is repeated (the cross products below ``RANK_ONE`` of the rows' size) one vector of
+    its eigenspace, where all three are equal (0, 0, 1). Near a repeated value the vector
+    is as ill-conditioned as any eigenvector there (error ~ eps |A| / gap).
+    """
+    t = tensor_from_mandel(np.asarray(m, dtype=float))
+    q = (t[0] + t[1] + t[2]) / 3.0
+    a, b, c = t[0] - q, t[1] - q, t[2] - q
+    d, e, f = t[3], t[4], t[5]
+    p = np.sqrt((a * a + b * b + c * c + 2.0 * (d * d + e * e + f * f)) / 6.0)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        det = a * (b * c - e * e) - d * (d * c - e * f) + f * (d * e - b * f)
+        r = np.clip(np.where(p > 0.0, det / (2.0 * np.where(p > 0.0, p, 1.0) ** 3), 0.0),
+                    -1.0, 1.0)
+    value = q + 2.0 * p * np.cos(np.arccos(r) / 3.0)
+    rows = np.stack([np.stack([t[0] - value, t[3], t[5]], axis=-1),
+                     np.stack([t[3], t[1] - value, t[4]], axis=-1),
+                     np.stack([t[5], t[4], t[2] - value], axis=-1)])
+    cross = np.stack([np.cross(rows[0], rows[1]), np.cross(rows[0], rows[2]),
+                      np.cross(rows[1], rows[2])])  # (3, ..., 3)
+    norm2 = np.sum(cross * cross, axis=-1)
+    best = np.argmax(norm2, axis=0)
+    vector = np.take_along_axis(cross, best[None, ..., None], axis=0)[0]
+    size2 = np.take_along_axis(norm2, best[None], axis=0)[0]
+    # the value repeated: A - lambda I has rank 1 (its rows parallel, their cross products
+    # round-off); the eigenspace is the plane normal to its largest row
+    row2 = np.sum(rows * rows, axis=-1)
+    top = np.take_along_axis(rows, np.argmax(row2, axis=0)[None, ..., None], axis=0)[0]
+    top2 = np.max(row2, axis=0)
+    rank1 = size2 <= RANK_ONE * top2 * top2
+    axis = np.eye(3)[np.argmin(np.abs(top), axis=-1)]
+    vector = np.where(rank1[..., None], np.cross(top, axis), vector)
+    size = np.sqrt(np.sum(vector * vector, axis=-1))
+    flat = size == 0.0  # all three values equal
+    vector = np.where(flat[..., None], [0.0, 0.0, 1.0],
+                      vector / np.where(flat, 1.0, size)[..., None])
+    return value, vector
+
+
 @contextlib.contextmanager
 def _converging():
     """LAPACK's failure to converge (on non-finite or absurdly large stresses) as a

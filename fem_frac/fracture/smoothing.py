@@ -36,8 +36,9 @@ from __future__ import annotations
 
 import numpy as np
 import scipy.sparse as sp
+from scipy.sparse.csgraph import connected_components
 
-from ..fem.tensors import principal
+from ..fem.tensors import largest_principal, principal
 from ..mesh.mesh import TET_EDGES, edge_keys, tet_volumes
 from .topology import face_adjacency
 
@@ -139,46 +140,116 @@ def update_operator(operator: sp.csr_matrix, points: np.ndarray, tets: np.ndarra
     """
     if method != "neighbours":
         return smoothing_operator(points, tets, length=length, rings=rings, method=method)
-    from scipy.spatial import cKDTree
-
     points = np.asarray(points, dtype=float)
     tets = np.asarray(tets, dtype=np.int64)
     m = tets.shape[0]
-    c = centroids(points, tets)
     step = _face_steps(tets)
-    x = points[tets]
-    diameters = np.max(np.linalg.norm(x[:, TET_EDGES[:, 0]] - x[:, TET_EDGES[:, 1]], axis=2),
-                       axis=1)
     split = np.asarray(split, dtype=float).reshape(-1, 3)
-    # a face opened at a split vertex v lies between tets holding v or a copy of it (same
-    # position), whose centroids are within their diameter of v: the largest diameter of
-    # the tets at v bounds how far from v a neighbourhood can meet the new faces
-    tol = 1e-12 * float(np.ptp(points, axis=0).max())
-    copies = cKDTree(points).query_ball_point(split, tol)
-    diameter = np.array([diameters[np.isin(tets, ids).any(axis=1)].max() for ids in copies])
+    at = _at_split(points, tets, split)
     if length is not None:
-        hit = cKDTree(c).query_ball_point(split, float(length) + diameter)
-        rows = np.unique(np.concatenate([np.asarray(h, dtype=np.int64) for h in hit]
-                                        + [np.zeros(0, np.int64)]))
-        fresh = _length_neighbourhoods(step, c, float(length), rows)
+        # a neighbourhood changes only where it held a tet at a split vertex (both tets of
+        # an opened face hold one), and only loses tets: the new one of such a row is the
+        # part of its old one still reachable from the row's tet
+        rows = np.flatnonzero(operator @ (at >= 0).any(axis=1).astype(float))
+        fresh = _reachable_within(operator, step, rows)
     else:
+        c = centroids(points, tets)
         near = np.zeros(m)
-        hit = cKDTree(c).query_ball_point(split, diameter)
-        near[np.concatenate([np.asarray(h, dtype=np.int64) for h in hit]
-                            + [np.zeros(0, np.int64)])] = 1.0
+        near[_within(c, split, _split_diameters(points, tets, at, split.shape[0]))] = 1.0
         for _ in range(int(rings) + 1):
             near = step @ near
         rows = np.flatnonzero(near)
         fresh = _ring_neighbourhoods(step, int(rings), rows)
     volumes = np.abs(tet_volumes(points, tets))
-    fresh = _volume_weighted(fresh, volumes)
-    keep = np.ones(m, dtype=bool)
-    keep[rows] = False
-    kept = sp.diags(keep.astype(float)) @ operator
-    placed = sp.csr_matrix((np.ones(rows.size), (rows, np.arange(rows.size))),
-                           shape=(m, rows.size)) @ fresh
-    out = sp.csr_matrix(kept + placed)
-    out.sort_indices()
+    return _replace_rows(operator, rows, _volume_weighted(fresh, volumes))
+
+
+def _at_split(points: np.ndarray, tets: np.ndarray, split: np.ndarray) -> np.ndarray:
+    """``(m, 4)``: the split position ``(k, 3)`` each tet corner is at (the vertex split or
+    a copy of it: same position), -1 for the others. Two split positions can coincide (a
+    vertex and its copy, both split): their corners name one of them."""
+    tol = 1e-12 * float(np.ptp(points, axis=0).max())
+    gap = np.linalg.norm(points[:, None, :] - split[None, :, :], axis=2)  # (n, k)
+    vertex, which = np.nonzero(gap <= tol)
+    at = np.full(points.shape[0], -1, dtype=np.int64)
+    at[vertex] = which
+    return at[tets]
+
+
+def _split_diameters(points: np.ndarray, tets: np.ndarray, at: np.ndarray, k: int
+                     ) -> np.ndarray:
+    """For each of the ``k`` split positions, the largest diameter of the tets with a corner
+    there (``at``: :func:`_at_split`; 0 for a position that shares its corners with another).
+    A face opened at a split vertex lies between such tets, whose centroids are within their
+    diameter of it: this bounds how far from the position a neighbourhood can meet the new
+    faces."""
+    t, corner = np.nonzero(at >= 0)
+    x = points[tets[t]]
+    d = np.max(np.linalg.norm(x[:, TET_EDGES[:, 0]] - x[:, TET_EDGES[:, 1]], axis=2), axis=1)
+    out = np.zeros(k)
+    np.maximum.at(out, at[t, corner], d)
+    return out
+
+
+def _reachable_within(old: sp.csr_matrix, step: sp.csr_matrix, rows: np.ndarray
+                      ) -> sp.csr_matrix:
+    """Pattern ``(len(rows), m)``: for each of ``rows``, the tets of its row of ``old`` (a
+    neighbourhood) that ``step`` (face adjacency with the diagonal) still connects to the
+    row's own tet within that row. One connected-components pass over the graph of
+    (row, tet) pairs, instead of growing the neighbourhoods ring by ring."""
+    m = old.shape[1]
+    sub = old[rows]
+    sub.sort_indices()
+    counts = np.diff(sub.indptr)
+    owner = np.repeat(np.arange(rows.size, dtype=np.int64), counts)
+    tet = sub.indices.astype(np.int64)
+    keys = owner * m + tet  # ascending: rows in order, indices sorted within each
+    # every (pair, face neighbour of its tet) that is a pair of the same row is an edge
+    degree = np.diff(step.indptr)[tet]
+    source = np.repeat(np.arange(tet.size, dtype=np.int64), degree)
+    start = np.repeat(step.indptr[tet].astype(np.int64) - np.cumsum(degree) + degree, degree)
+    target = owner[source] * m + step.indices[start + np.arange(source.size)]
+    pos = np.minimum(np.searchsorted(keys, target), keys.size - 1)
+    hit = keys[pos] == target
+    graph = sp.csr_matrix((np.ones(np.count_nonzero(hit), dtype=np.int8),
+                           (source[hit], pos[hit])), shape=(tet.size, tet.size))
+    _, label = connected_components(graph, directed=False)
+    home = np.searchsorted(keys, np.arange(rows.size, dtype=np.int64) * m + rows)
+    kept = label == label[home][owner]
+    indptr = np.zeros(rows.size + 1, dtype=np.int64)
+    np.cumsum(np.bincount(owner[kept], minlength=rows.size), out=indptr[1:])
+    return sp.csr_matrix((np.ones(np.count_nonzero(kept)), tet[kept], indptr),
+                         shape=(rows.size, m))
+
+
+def _within(c: np.ndarray, split: np.ndarray, radius: np.ndarray) -> np.ndarray:
+    """Sorted ids of the centroids ``c`` within ``radius[j]`` of some ``split[j]``."""
+    near = np.zeros(c.shape[0], dtype=bool)
+    for j in range(split.shape[0]):  # a batch's few split positions, each a pass over c
+        near |= np.sum((c - split[j]) ** 2, axis=1) <= radius[j] ** 2
+    return np.flatnonzero(near)
+
+
+def _replace_rows(operator: sp.csr_matrix, rows: np.ndarray, fresh: sp.csr_matrix
+                  ) -> sp.csr_matrix:
+    """``operator`` with its rows ``rows`` (sorted, unique) replaced by the rows of ``fresh``
+    (``(len(rows), m)``), in one gather of the stored entries (sorted indices)."""
+    fresh = sp.csr_matrix(fresh)
+    fresh.sort_indices()
+    operator.sort_indices()
+    m = operator.shape[0]
+    lengths = np.diff(operator.indptr).astype(np.int64)
+    lengths[rows] = np.diff(fresh.indptr)
+    indptr = np.zeros(m + 1, dtype=np.int64)
+    np.cumsum(lengths, out=indptr[1:])
+    # where each row's entries start in the pool [operator's entries, fresh's entries]
+    source = operator.indptr[:-1].astype(np.int64)
+    source[rows] = operator.nnz + fresh.indptr[:-1]
+    take = np.repeat(source - indptr[:-1], lengths) + np.arange(indptr[-1], dtype=np.int64)
+    data = np.concatenate([operator.data, fresh.data])[take]
+    indices = np.concatenate([operator.indices, fresh.indices.astype(operator.indices.dtype)])
+    out = sp.csr_matrix((data, indices[take], indptr), shape=operator.shape)
+    out.has_sorted_indices = True
     return out
 
 
@@ -258,17 +329,46 @@ def smooth(operator, element_stress: np.ndarray) -> np.ndarray:
     return np.asarray((operator @ x.T).T)
 
 
-def principal_stress(element_stress: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Largest principal stress and its unit direction of Mandel stresses ``(6, ...)``.
+def principal_stress(element_stress: np.ndarray, exact_above: float | None = None
+                     ) -> tuple[np.ndarray, np.ndarray]:
+    """Largest principal stress and its unit direction of Mandel stresses ``(6, m)``.
 
-    Returns ``(sigma1 (...), direction (..., 3))`` (``(m,)`` and ``(m, 3)`` for ``(6, m)``),
-    from :func:`~fem_frac.fem.tensors.principal` (batched :func:`numpy.linalg.eigh`). Each
-    direction is oriented so that its largest-magnitude component is positive (the first
-    such one on a tie), so the result is reproducible; where the largest eigenvalue is
-    repeated the direction is one unit vector of its eigenspace, whichever LAPACK returns.
+    Returns ``(sigma1 (m,), direction (m, 3))`` from :func:`~fem_frac.fem.tensors.principal`
+    (batched :func:`numpy.linalg.eigh`). Each direction is oriented so that its
+    largest-magnitude component is positive (the first such one on a tie), so the result is
+    reproducible; where the largest eigenvalue is repeated the direction is one unit vector
+    of its eigenspace, whichever LAPACK returns.
+
+    ``exact_above``: the values are first found in closed form
+    (:func:`~fem_frac.fem.tensors.largest_principal`, to a few ulps), and only the tensors
+    whose value may exceed ``exact_above`` (a crack criterion's strength; a margin of 1e-9
+    of the tensor's size covers the closed form's error) go through ``eigh``: those
+    values and directions are the same bits as without it, the others within round-off.
     """
-    values, vectors = principal(element_stress)
-    d = vectors[..., :, -1]
+    stress = np.asarray(element_stress, dtype=float)
+    if exact_above is not None:
+        value, vector = largest_principal(stress)
+        size = np.abs(np.sum(stress[:3], axis=0)) + np.sqrt(np.sum(stress * stress, axis=0))
+        near = value >= exact_above - EXACT_MARGIN * size
+        if np.all(np.isfinite(value)) and np.count_nonzero(near) <= 0.5 * value.size:
+            vector = _oriented(vector)
+            if near.any():
+                value[near], vector[near] = _oriented_eigh(stress[:, near])
+            return value, vector
+    return _oriented_eigh(stress)
+
+
+# the closed form's error is a few ulps of a tensor's size: far inside this margin
+EXACT_MARGIN = 1e-9
+
+
+def _oriented_eigh(stress: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    values, vectors = principal(stress)
+    return values[..., -1], _oriented(vectors[..., :, -1])
+
+
+def _oriented(d: np.ndarray) -> np.ndarray:
+    """Unit vectors ``(..., 3)`` turned so that the largest-magnitude component is positive."""
     k = np.argmax(np.abs(d), axis=-1)[..., None]
     sign = np.where(np.take_along_axis(d, k, axis=-1) < 0.0, -1.0, 1.0)
-    return values[..., -1], d * sign
+    return d * sign

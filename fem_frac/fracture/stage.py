@@ -322,7 +322,10 @@ class FractureStage:
         smoothed = smooth(topo.smoothing, own)
         if topo.own is not None:
             smoothed = np.where(topo.own, own, smoothed)
-        result = principal_stress(smoothed)
+        # the values that decide sites by eigh, the rest in closed form; cohesive cracks
+        # also weigh the values and directions below the strength (peaks, fronts)
+        exact = self.config.tensile_strength if self.config.fracture_energy is None else None
+        result = principal_stress(smoothed, exact_above=exact)
         topo.principal = (stress, result, smoothed)
         return result
 

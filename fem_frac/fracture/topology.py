@@ -35,7 +35,6 @@ from ..mesh.mesh import (
     Mesh,
     SortedKeys,
     edge_keys,
-    exterior_face_rows,
     facet_keys,
     match,
 )
@@ -88,9 +87,10 @@ def identity_transfer(n_points: int, n_tets: int) -> Transfer:
 
 # The matched faces of the last few connectivities: a crack-insertion batch asks for those
 # of its new mesh four times (debris check, smoothing update, site lookups), each a sort of
-# every face of every tet.
+# every face of every tet; open_crack derives the new tables' from the old one's (the old,
+# the split and the separated table: kept together).
 _PAIRS: dict[tuple, tuple] = {}
-_PAIRS_KEPT = 2
+_PAIRS_KEPT = 4
 
 
 def _face_pairs(tets: np.ndarray):
@@ -112,6 +112,58 @@ def _face_pairs(tets: np.ndarray):
             array.flags.writeable = False
         _PAIRS[key] = pairs
     return _PAIRS[key]
+
+
+def _seed_pairs(tets: np.ndarray, pairs) -> None:
+    """Keep ``pairs`` as the matched faces of ``tets`` (made without a sort, by
+    :func:`_kept_pairs`)."""
+    tets = np.ascontiguousarray(tets, dtype=np.int64)
+    key = (tets.shape, hashlib.blake2b(tets.data, digest_size=16).digest())
+    while len(_PAIRS) >= _PAIRS_KEPT:
+        _PAIRS.pop(next(iter(_PAIRS)))
+    for array in pairs:
+        array.flags.writeable = False
+    _PAIRS[key] = pairs
+
+
+def _kept_pairs(pairs, old: np.ndarray, tets: np.ndarray):
+    """The matched faces of ``tets`` from ``pairs``, those of the table ``old`` that
+    ``tets`` was made from by giving some corners new ids (splits, copies): the pairs
+    whose faces still hold one vertex set, with their local corners ordered by the new ids
+    (recomputed for the tets whose ids changed). A split never makes two faces equal that
+    were not, so no pair is missed; the pairs' order is the old one (every user of the
+    pairs is indifferent to it). ``None`` where a face had more than two tets (a chain of
+    pairs, which a split may re-link): then the faces are matched afresh.
+    """
+    r1, r2, l1, l2 = pairs
+    if np.bincount(np.concatenate([r1, r2]), minlength=4 * tets.shape[0]).max(initial=0) > 1:
+        return None
+    changed = np.any(np.asarray(old) != tets, axis=1)
+    touched = np.flatnonzero(changed[r1 // 4] | changed[r2 // 4])
+    n1, g1 = _sorted_face(tets, r1[touched])
+    n2, g2 = _sorted_face(tets, r2[touched])
+    l1, l2 = l1.copy(), l2.copy()
+    l1[touched], l2[touched] = n1, n2
+    keep = np.ones(r1.size, dtype=bool)
+    keep[touched[np.any(g1 != g2, axis=1)]] = False
+    return r1[keep], r2[keep], l1[keep], l2[keep]
+
+
+def _sorted_face(tets: np.ndarray, rows: np.ndarray):
+    """Local corners ``(k, 3)`` and global ids of the face rows ``rows``, in increasing
+    global id (as :func:`_match_faces` lists them)."""
+    local = TET_FACES[rows % 4]
+    glob = np.take_along_axis(tets[rows // 4], local, axis=1)
+    order = np.argsort(glob, axis=1, kind="stable")
+    return np.take_along_axis(local, order, axis=1), np.take_along_axis(glob, order, axis=1)
+
+
+def _held(tets: np.ndarray) -> np.ndarray:
+    """Mask ``(4 m,)`` over the face rows of ``tets``: the faces another tet also holds."""
+    r1, r2, _, _ = _face_pairs(tets)
+    held = np.zeros(4 * np.asarray(tets).shape[0], dtype=bool)
+    held[r1] = held[r2] = True
+    return held
 
 
 def _match_faces(tets: np.ndarray):
@@ -230,10 +282,9 @@ def _rebuild(old: Mesh, tets: np.ndarray, node_map: np.ndarray) -> tuple[Mesh, T
         same = node_map[f][:, None, :] == tri[:, :, None]  # (k, 3 caller, 3 face)
         boundaries[name] = np.take_along_axis(f, np.argmax(same, axis=2), axis=1)
 
-    outer_new = faces[exterior_face_rows(tets, len(node_map))]
-    old_faces = np.asarray(old.tets, dtype=np.int64)[:, TET_FACES].reshape(-1, 3)
-    outer_old = facet_keys(old_faces[exterior_face_rows(old.tets, n_old)], n_old)
-    exposed = outer_new[~np.isin(facet_keys(node_map[outer_new], n_old), outer_old)]
+    # the tets keep their rows: a face is newly exposed where its row was held by two
+    # tets and is held by one now
+    exposed = faces[_held(old.tets) & ~_held(tets)]
     boundaries[CRACK] = np.concatenate(
         [boundaries.get(CRACK, np.empty((0, 3), dtype=np.int64)), exposed]
     ).astype(np.int64)
@@ -307,9 +358,16 @@ def open_crack(mesh: Mesh, vertices, normals, separate: bool = True) -> tuple[Me
             ref[n + len(copied)] = ref[v]
             copied.append(v)
     node_map = np.concatenate([np.arange(n, dtype=np.int64), np.asarray(copied, dtype=np.int64)])
+    # the splits only gave corners new ids: the faces matched before, still matched, are
+    # the new table's (a sort of every face saved for each of the tables below)
+    pairs = _kept_pairs(_face_pairs(mesh.tets), mesh.tets, tets)
+    if pairs is not None:
+        _seed_pairs(tets, pairs)
     if separate:
-        tets, later = _separate_tets(tets, node_map.size)
+        split, (tets, later) = tets, _separate_tets(tets, node_map.size)
         node_map = node_map[later]
+        if pairs is not None:  # a separation gives no face to another tet
+            _seed_pairs(tets, _kept_pairs(pairs, split, tets))
     return _rebuild(mesh, tets, node_map)
 
 
