@@ -346,7 +346,7 @@ def principal_stress(element_stress: np.ndarray, exact_above: float | None = Non
     values and directions are the same bits as without it, the others within round-off.
     """
     stress = np.asarray(element_stress, dtype=float)
-    if exact_above is not None:
+    if exact_above is not None and _mostly_below(stress, exact_above):
         value, vector = largest_principal(stress)
         size = np.abs(np.sum(stress[:3], axis=0)) + np.sqrt(np.sum(stress * stress, axis=0))
         near = value >= exact_above - EXACT_MARGIN * size
@@ -360,6 +360,15 @@ def principal_stress(element_stress: np.ndarray, exact_above: float | None = Non
 
 # the closed form's error is a few ulps of a tensor's size: far inside this margin
 EXACT_MARGIN = 1e-9
+
+
+def _mostly_below(stress: np.ndarray, level: float) -> bool:
+    """Whether most tensors ``(6, m)`` have their largest value below ``level`` by the bound
+    ``sigma1 <= p + sqrt(2/3) |dev|`` (p the mean stress): where most may exceed it, eigh
+    is needed for most anyway and the closed form would be spent in vain."""
+    p = np.sum(stress[:3], axis=0) / 3.0
+    dev2 = np.sum((stress[:3] - p) ** 2, axis=0) + np.sum(stress[3:] ** 2, axis=0)
+    return np.count_nonzero(p + np.sqrt(2.0 / 3.0 * dev2) >= level) <= 0.5 * p.size
 
 
 def _oriented_eigh(stress: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
