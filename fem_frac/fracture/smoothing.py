@@ -130,13 +130,15 @@ def update_operator(operator: sp.csr_matrix, points: np.ndarray, tets: np.ndarra
                     rings: int | None = None, method: str = "neighbours") -> sp.csr_matrix:
     """The operator of a mesh just cracked, from the ``operator`` of the mesh before.
 
+    ``operator``: :func:`smoothing_operator` of the mesh before with the same size;
     ``points``, ``tets``: the new mesh (same tets, element ids unchanged); ``split``: the
     reference positions ``(k, 3)`` of the vertices split. Cracks open only along faces at
-    those vertices, so for ``neighbours`` only the rows whose neighbourhood can reach such
-    a face change: elements whose centroid lies within ``length`` plus the largest tet
-    diameter of a split vertex (``length``), or within ``rings + 1`` face-steps of a tet at
-    one (``rings``). Those rows are rebuilt, the others kept; the result equals
-    :func:`smoothing_operator` on the new mesh. ``nodal`` is rebuilt whole.
+    those vertices, so for ``neighbours`` only some rows change. With ``length``: the rows
+    whose neighbourhood held a tet at a split vertex, each now the part of its old
+    neighbourhood still connected to its tet (:func:`_reachable_within`). With ``rings``:
+    the elements within ``rings + 1`` face-steps of a tet at a split vertex, rebuilt. The
+    other rows are kept; the result equals :func:`smoothing_operator` on the new mesh, to
+    the bit. ``nodal`` is rebuilt whole.
     """
     if method != "neighbours":
         return smoothing_operator(points, tets, length=length, rings=rings, method=method)
@@ -168,11 +170,11 @@ def _at_split(points: np.ndarray, tets: np.ndarray, split: np.ndarray) -> np.nda
     """``(m, 4)``: the split position ``(k, 3)`` each tet corner is at (the vertex split or
     a copy of it: same position), -1 for the others. Two split positions can coincide (a
     vertex and its copy, both split): their corners name one of them."""
+    from scipy.spatial import cKDTree
+
     tol = 1e-12 * float(np.ptp(points, axis=0).max())
-    gap = np.linalg.norm(points[:, None, :] - split[None, :, :], axis=2)  # (n, k)
-    vertex, which = np.nonzero(gap <= tol)
-    at = np.full(points.shape[0], -1, dtype=np.int64)
-    at[vertex] = which
+    _, which = cKDTree(split).query(points, distance_upper_bound=tol)
+    at = np.where(which < split.shape[0], which, -1).astype(np.int64)
     return at[tets]
 
 
@@ -224,10 +226,11 @@ def _reachable_within(old: sp.csr_matrix, step: sp.csr_matrix, rows: np.ndarray
 
 def _within(c: np.ndarray, split: np.ndarray, radius: np.ndarray) -> np.ndarray:
     """Sorted ids of the centroids ``c`` within ``radius[j]`` of some ``split[j]``."""
-    near = np.zeros(c.shape[0], dtype=bool)
-    for j in range(split.shape[0]):  # a batch's few split positions, each a pass over c
-        near |= np.sum((c - split[j]) ** 2, axis=1) <= radius[j] ** 2
-    return np.flatnonzero(near)
+    from scipy.spatial import cKDTree
+
+    hit = cKDTree(c).query_ball_point(split, radius)
+    return np.unique(np.concatenate([np.asarray(h, dtype=np.int64) for h in hit]
+                                    + [np.zeros(0, np.int64)]))
 
 
 def _replace_rows(operator: sp.csr_matrix, rows: np.ndarray, fresh: sp.csr_matrix
