@@ -49,6 +49,15 @@ def _wait_for_steps(out: Path, proc: subprocess.Popen, steps: int = 3,
     raise AssertionError("the run reported no progress")
 
 
+def _signal_masks(pid: int) -> str:
+    """The child's ignored and caught signals (/proc), to say why a signal did nothing."""
+    try:
+        lines = Path(f"/proc/{pid}/status").read_text().splitlines()
+    except OSError:
+        return "unknown"
+    return ", ".join(x.replace("\t", " ") for x in lines if x.startswith(("SigIgn", "SigCgt")))
+
+
 def _check_kept(out: Path) -> dict:
     """The series, the resolved case and the summary a stopped run leaves."""
     pvd = ET.parse(out / "vibrating_beam.pvd").getroot()
@@ -76,8 +85,18 @@ def test_an_interrupted_run_says_where_it_stopped(tmp_path, signum):
     out = tmp_path / "out"
     proc = _start(out)
     _wait_for_steps(out, proc)
+    signals = _signal_masks(proc.pid)
     proc.send_signal(signum)
-    _, err = proc.communicate(timeout=60)
+    try:
+        _, err = proc.communicate(timeout=60)
+    except subprocess.TimeoutExpired:
+        proc.kill()
+        _, err = proc.communicate()
+        summary = json.loads((out / "summary.json").read_text())
+        raise AssertionError(
+            f"the run went on after the signal (its masks then: {signals}; it reached step "
+            f"{summary.get('step')} of {summary.get('steps')}, {summary.get('status')}); "
+            f"stderr: {err[-2000:]}") from None
     assert proc.returncode == 128 + signum
     summary = _check_kept(out)
     assert summary["status"] == "interrupted" and 3 <= summary["step"] < summary["steps"]
