@@ -54,6 +54,7 @@ import numpy as np
 import yaml
 
 from fem_frac.mesh.geometry import hollow_sphere
+from fem_frac.mesh.mesh import TET_FACES, edge_keys, facet_keys, match
 from fem_frac.mesh.reader import VTK_TET10_EDGES
 from fem_frac.verify.exact import lame_sphere_displacement, lame_sphere_radial_displacement
 
@@ -81,11 +82,9 @@ def quadratic_mesh(size: float) -> tuple[Mesh10, float]:
     pairs = np.sort(mesh.tets[:, VTK_TET10_EDGES].reshape(-1, 2), axis=1)
     edges, edge_of = np.unique(pairs, axis=0, return_inverse=True)
     mids = 0.5 * (mesh.points[edges[:, 0]] + mesh.points[edges[:, 1]])
-    if mesh.edges is not None and len(mesh.edges):
-        keys = {tuple(e): i for i, e in enumerate(edges)}
-        rows = np.array([keys[tuple(e)] for e in np.sort(mesh.edges, axis=1)])
-        mids[rows] = mesh.edge_points
     n = len(mesh.points)
+    if mesh.curved:
+        mids[match(edge_keys(edges, n), edge_keys(mesh.edges, n))] = mesh.edge_points
     tets = np.hstack([mesh.tets, n + edge_of.reshape(-1, 6)])
     # CalculiX reads a number in at most 20 characters: both files get the coordinates
     # rounded to 14 digits (what "%.13e" writes)
@@ -137,18 +136,14 @@ def _face_nodes(mesh: Mesh10, name: str) -> np.ndarray:
 
 
 def _bore_faces(mesh: Mesh10) -> tuple[np.ndarray, np.ndarray]:
-    """(element, face number) of every bore triangle."""
-    keys = {tuple(sorted(t)): i for i, t in enumerate(mesh.faces["inner"])}
-    element, face = [], []
-    for e, tet in enumerate(mesh.tets[:, :4]):
-        for left_out in range(4):
-            tri = tuple(sorted(np.delete(tet, left_out)))
-            if tri in keys:
-                element.append(e)
-                face.append(FACE_WITHOUT[left_out])
-    if len(element) != len(mesh.faces["inner"]):
+    """(element, face number) of every bore triangle (face row ``4 t + i`` of the corner
+    table is face ``i`` of tet ``t``, opposite its corner ``i``)."""
+    corners, n = mesh.tets[:, :4], len(mesh.points)
+    faces = corners[:, TET_FACES].reshape(-1, 3)
+    row = match(facet_keys(faces, n), facet_keys(mesh.faces["inner"], n))
+    if np.any(row < 0):
         raise RuntimeError("bore triangles without a tet")
-    return np.array(element), np.array(face)
+    return row // 4, np.array([FACE_WITHOUT[i] for i in range(4)])[row % 4]
 
 
 def nodal_error(points: np.ndarray, u: np.ndarray) -> float:
