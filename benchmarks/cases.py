@@ -41,7 +41,11 @@ import tempfile
 import time
 from pathlib import Path
 
-import numpy as np
+# the floor's process runs numpy's OpenBLAS as the fem-frac command does (one thread, unless
+# the environment says otherwise: fem_frac/app/cli.py), set before numpy loads it
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+
+import numpy as np  # noqa: E402
 
 ROOT = Path(__file__).resolve().parent.parent
 FLUSH = np.zeros(0)
