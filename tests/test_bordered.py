@@ -37,15 +37,17 @@ def tie(old_free, new_free, node_map, n_old_dofs):
     return index[dofs[new_free]]
 
 
-def crack(mesh, x):
-    """Split the interior vertices on the plane x = ``x`` (a crack across, its edges short of
-    the sides so the body holds together)."""
+def crack(mesh, x, axis=0):
+    """Split the interior vertices on the plane x_axis = ``x`` (a crack across, its edges
+    short of the sides so the body holds together)."""
     p = mesh.points
-    on = np.abs(p[:, 0] - x) < 1e-12
-    inside = on & (p[:, 1] > 1e-12) & (p[:, 1] < 1 - 1e-12) & (p[:, 2] > 1e-12) \
-        & (p[:, 2] < 1 - 1e-12)
+    on = np.abs(p[:, axis] - x) < 1e-12
+    others = [k for k in range(3) if k != axis]
+    extent = p.max(axis=0)
+    inside = on & np.all((p[:, others] > 1e-12) & (p[:, others] < extent[others] - 1e-12),
+                         axis=1)
     vertices = np.flatnonzero(inside)
-    return open_crack(mesh, vertices, np.tile([1.0, 0, 0], (vertices.size, 1)))
+    return open_crack(mesh, vertices, np.tile(np.eye(3)[axis], (vertices.size, 1)))
 
 
 @pytest.fixture(scope="module")
@@ -61,7 +63,8 @@ def chain():
 
 def test_solves_as_the_new_stiffness_does_through_a_chain_of_insertions(chain, monkeypatch):
     (a0, _), (a1, tie1), (a2, tie2) = chain
-    monkeypatch.setattr(bordered, "COPIES", 1e9)  # the policy aside: keep the base here
+    monkeypatch.setattr(bordered, "SHARE", 1e9)  # the policy aside: keep the base here
+    monkeypatch.setattr(bordered, "COPIES", 1e9)
     base = factorize(a0)
     rng = np.random.default_rng(0)
     one = bordered_factor(base, tie1, a1)
@@ -77,15 +80,62 @@ def test_solves_as_the_new_stiffness_does_through_a_chain_of_insertions(chain, m
             assert np.abs(x - exact).max() <= 1e-10 * np.abs(exact).max()
 
 
+def test_reuses_the_columns_an_insertion_left_alone(monkeypatch):
+    """A second crack beside the first leaves the first one's columns of C as they were (to
+    round-off), so their columns of G are reused; a third across both splits some of their
+    copies again, whose changed columns are solved afresh. Every solve stays the direct
+    one's to round-off, and matches the same chain with nothing reused."""
+    monkeypatch.setattr(bordered, "SHARE", 1e9)
+    monkeypatch.setattr(bordered, "COPIES", 1e9)
+    m0 = structured_box((6, 4, 4))
+    m1, t1 = crack(m0, 0.5)
+    m2, t2 = crack(m1, 2 / 6)
+    m3, t3 = crack(m2, 0.5, axis=1)
+    systems = [system(m) for m in (m0, m1, m2, m3)]
+    ties = [tie(f0, f1, np.asarray(t.node_map), 3 * m.n_points)
+            for (_, f0), (_, f1), t, m in zip(systems, systems[1:], (t1, t2, t3),
+                                              (m0, m1, m2), strict=True)]
+    rng = np.random.default_rng(1)
+
+    def chain():
+        f, out = factorize(systems[0][0]), []
+        for (a, _), t in zip(systems[1:], ties, strict=True):
+            f = bordered_factor(f, t, a)
+            out.append(f)
+        return out
+
+    one, two, three = chain()
+    assert one.solved == one.copies  # nothing before it to reuse
+    assert 0 < two.solved < two.copies  # the first crack's columns reused
+    assert two.copies - two.solved == one.copies
+    assert 0 < three.copies - three.solved < two.copies  # some of them changed
+    monkeypatch.setattr(bordered, "REUSE", -1.0)  # nothing counts as unchanged
+    plain = chain()
+    assert all(f.solved == f.copies for f in plain)
+    for (a, _), f, p in zip(systems[1:], (one, two, three), plain, strict=True):
+        b = rng.standard_normal(a.shape[0])
+        exact = spla.spsolve(a.tocsc(), b)
+        assert np.abs(f.solve(b) - exact).max() <= 1e-10 * np.abs(exact).max()
+        assert np.abs(f.solve(b) - p.solve(b)).max() <= 1e-10 * np.abs(exact).max()
+
+
 def test_refactorizes_past_its_share_of_copies(chain, monkeypatch):
-    """Up to COPIES n^(1/3) copied dofs the base is kept, past that a fresh factorization is
-    asked for (the same answer every time: no clock in the rule)."""
+    """The base is kept while G (n x m) holds at most SHARE of its factor's entries (where
+    the backend reports them; else up to COPIES n^(1/3) copies), past that a fresh
+    factorization is asked for (the same answer every time: no clock in the rule)."""
     (a0, _), (a1, tie1), _ = chain
     base = factorize(a0)
-    m = a1.shape[0] - a0.shape[0]
-    monkeypatch.setattr(bordered, "COPIES", m / a0.shape[0] ** (1 / 3))
+    n, m = a0.shape[0], a1.shape[0] - a0.shape[0]
+    if base.nonzeros:
+        assert base.nonzeros >= a0.nnz // 2  # a Cholesky factor holds A's lower triangle
+        monkeypatch.setattr(bordered, "SHARE", m * n / base.nonzeros)
+        assert bordered_factor(base, tie1, a1) is not None
+        monkeypatch.setattr(bordered, "SHARE", 0.99 * m * n / base.nonzeros)
+        assert bordered_factor(base, tie1, a1) is None
+    base.nonzeros = None  # a backend that does not report them
+    monkeypatch.setattr(bordered, "COPIES", m / n ** (1 / 3))
     assert bordered_factor(base, tie1, a1) is not None
-    monkeypatch.setattr(bordered, "COPIES", 0.99 * m / a0.shape[0] ** (1 / 3))
+    monkeypatch.setattr(bordered, "COPIES", 0.99 * m / n ** (1 / 3))
     assert bordered_factor(base, tie1, a1) is None
 
 
@@ -96,6 +146,7 @@ def test_a_piece_cut_loose_is_refused(monkeypatch):
     on = np.flatnonzero(np.abs(m0.points[:, 0] - 0.5) < 1e-12)
     m1, t1 = open_crack(m0, on, np.tile([1.0, 0, 0], (on.size, 1)))
     (a0, f0), (a1, f1) = system(m0), system(m1)
+    monkeypatch.setattr(bordered, "SHARE", 1e9)
     monkeypatch.setattr(bordered, "COPIES", 1e9)
     base = factorize(a0)
     assert bordered_factor(base, tie(f0, f1, np.asarray(t1.node_map), 3 * m0.n_points),

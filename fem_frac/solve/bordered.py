@@ -43,24 +43,31 @@ import scipy.sparse as sp
 
 from .linalg import Factorization
 
-# Keep the base factorization for up to this many copied dofs per cube root of its size.
+# Keep the base factorization while G (n x m) holds at most this share of the factor's
+# entries; where the backend does not report them, for up to COPIES copied dofs per cube
+# root of its size.
+SHARE = 1.0
 COPIES = 2.5
 # A Schur complement pivot below this share of the largest diagonal of D: singular.
 SINGULAR = 1e-12
+# A column of C that moved by at most this share of its largest entry is unchanged: its
+# entries are the same element terms, summed in another order where a neighbour split.
+REUSE = 1e-13
 
 
 def bordered_factor(base: Factorization, tie: np.ndarray,
                     matrix: sp.csr_matrix) -> Factorization | None:
     """A factorization of ``matrix`` (the new free-dof Jacobian, ``(n', n')``) through
     ``base`` (a :class:`Factorization` of the base mesh's, or a bordered one, whose base is
-    then used with the ties composed) and ``tie (n',)``: the free dof of ``base``'s matrix
-    each new free dof copies. ``None`` where the module's policy says to refactorize."""
-    root = base
+    then used with the ties composed and whose columns of ``G`` are reused where ``C``'s
+    did not change) and ``tie (n',)``: the free dof of ``base``'s matrix each new free dof
+    copies. ``None`` where the module's policy says to refactorize."""
+    local = np.asarray(tie, dtype=np.int64)
+    root, prior, tie = base, None, local
     if hasattr(base, "tie"):  # compose with the meshes between
-        root, tie = base.root, base.tie[tie]
+        root, prior, tie = base.root, base, base.tie[local]
     start = time.perf_counter()
     n = root.n
-    tie = np.asarray(tie, dtype=np.int64)
     if tie.max() >= n or np.any(np.bincount(tie, minlength=n) == 0):
         return None  # not every base dof has a copy left, or one that is not the base's
     # the first new dof tied to each base dof represents it; the others are copies
@@ -68,14 +75,20 @@ def bordered_factor(base: Factorization, tie: np.ndarray,
     first = np.r_[True, tie[order][1:] != tie[order][:-1]]
     copies = np.sort(order[~first])
     m = copies.size
-    if m > COPIES * n ** (1.0 / 3.0):
+    if m > copies_limit(root):
         return None
     a = sp.csr_matrix(matrix)
     tied = sp.csr_matrix((np.ones(tie.size), (tie, np.arange(tie.size))),
                          shape=(n, tie.size))  # E^T
-    c = (tied @ a[:, copies]).toarray()  # (n, m)
+    c = sp.csc_matrix(tied @ a[:, copies])  # (n, m), a few entries a column
+    c.sort_indices()
     d = a[copies][:, copies].toarray()
-    g = root.solve(c) if m else np.zeros((n, 0))
+    g = np.empty((n, m), order="F")
+    new, old = _unchanged_columns(prior, local[copies], c)
+    g[:, new] = prior.g[:, old] if new.size else 0.0
+    fresh = np.setdiff1d(np.arange(m), new)
+    if fresh.size:
+        g[:, fresh] = root.solve(c[:, fresh].toarray())
     s = d - c.T @ g
     cho = None
     if m:
@@ -105,4 +118,37 @@ def bordered_factor(base: Factorization, tie: np.ndarray,
     out.factor_time = seconds
     out.probe_residual = root.probe_residual
     out.root, out.tie, out.copies = root, tie, m
+    out.copy_ids, out.c, out.g = copies, c, g  # for the next insertion's reuse
+    out.solved = int(fresh.size)  # columns of G back-solved here (the others reused)
     return out
+
+
+def copies_limit(root: Factorization) -> float:
+    """The most copied dofs ``root`` serves (module docstring): ``SHARE`` times the factor's
+    entries per dof where the backend reports them, else ``COPIES n^(1/3)``."""
+    if root.nonzeros:
+        return SHARE * root.nonzeros / root.n
+    return COPIES * root.n ** (1.0 / 3.0)
+
+
+def _unchanged_columns(prior: Factorization | None, copied: np.ndarray, c: sp.csc_matrix
+                       ) -> tuple[np.ndarray, np.ndarray]:
+    """``(j, k)``: the columns ``j`` of the new ``C`` equal, to round-off (``REUSE`` of the
+    column's largest entry), to the columns ``k`` of ``prior``'s (a bordered factor on the
+    same root), whose ``G`` columns therefore serve unchanged. ``copied``: the prior mesh's
+    dof each new copy copies; a copy of a prior copy whose elements the insertion left
+    alone has the same column (its entries summed again where a neighbour split)."""
+    none = np.zeros(0, dtype=np.int64)
+    if prior is None or prior.copies == 0 or c.shape[1] == 0:
+        return none, none
+    pos = np.minimum(np.searchsorted(prior.copy_ids, copied), prior.copies - 1)
+    j = np.flatnonzero(prior.copy_ids[pos] == copied)
+    if j.size == 0:
+        return none, none
+    k = pos[j]
+    new, old = c[:, j], prior.c[:, k]
+    diff = abs(new - old).max(axis=0).toarray().ravel()
+    scale = np.maximum(abs(new).max(axis=0).toarray().ravel(),
+                       abs(old).max(axis=0).toarray().ravel())
+    same = diff <= REUSE * scale
+    return j[same], k[same]

@@ -59,7 +59,9 @@ class Factorization:
     """A stored factorization of an n x n SPD matrix.
 
     Attributes: ``method`` (backend name), ``n`` (size), ``factor_time`` (seconds spent in
-    :func:`factorize`, checks included), ``probe_residual`` (relative residual of the check).
+    :func:`factorize`, checks included), ``probe_residual`` (relative residual of the check),
+    ``nonzeros`` (entries of the factor where the backend reports them, PARDISO's; else
+    ``None``).
     """
 
     def __init__(self, method: str, n: int, solve: Solve):
@@ -68,6 +70,7 @@ class Factorization:
         self._solve = solve
         self.factor_time = 0.0
         self.probe_residual = float("nan")
+        self.nonzeros = getattr(solve, "nonzeros", None)
 
     def solve(self, b: np.ndarray) -> np.ndarray:
         """Solve A x = b. ``b``: shape (n,) or (n, k). Returns x of the same shape, float64."""
@@ -219,6 +222,7 @@ def _pardiso_solve(handle: _PardisoHandle) -> Solve:
         _pardiso_check(handle.call(33, b, x), "back-solve")
         return x
 
+    solve.nonzeros = int(handle.iparm[17])  # the factor's, as PARDISO reports them
     return solve
 
 
