@@ -93,7 +93,7 @@ def test_reuses_the_columns_an_insertion_left_alone(monkeypatch):
     m3, t3 = crack(m2, 0.5, axis=1)
     systems = [system(m) for m in (m0, m1, m2, m3)]
     ties = [tie(f0, f1, np.asarray(t.node_map), 3 * m.n_points)
-            for (_, f0), (_, f1), t, m in zip(systems, systems[1:], (t1, t2, t3),
+            for (_, f0), (_, f1), t, m in zip(systems[:-1], systems[1:], (t1, t2, t3),
                                               (m0, m1, m2), strict=True)]
     rng = np.random.default_rng(1)
 
