@@ -198,30 +198,46 @@ def _reachable_within(old: sp.csr_matrix, step: sp.csr_matrix, rows: np.ndarray
     """Pattern ``(len(rows), m)``: for each of ``rows``, the tets of its row of ``old`` (a
     neighbourhood) that ``step`` (face adjacency with the diagonal) still connects to the
     row's own tet within that row. One connected-components pass over the graph of
-    (row, tet) pairs, instead of growing the neighbourhoods ring by ring."""
+    (row, tet) pairs, instead of growing the neighbourhoods ring by ring: each pair's
+    edges go to the pairs of the same row at its tet's face neighbours, found by a search
+    within that row (a pair whose neighbour is not in the row points to itself)."""
     m = old.shape[1]
     sub = old[rows]
     sub.sort_indices()
-    counts = np.diff(sub.indptr)
-    owner = np.repeat(np.arange(rows.size, dtype=np.int64), counts)
-    tet = sub.indices.astype(np.int64)
-    keys = owner * m + tet  # ascending: rows in order, indices sorted within each
-    # every (pair, face neighbour of its tet) that is a pair of the same row is an edge
-    degree = np.diff(step.indptr)[tet]
-    source = np.repeat(np.arange(tet.size, dtype=np.int64), degree)
-    start = np.repeat(step.indptr[tet].astype(np.int64) - np.cumsum(degree) + degree, degree)
-    target = owner[source] * m + step.indices[start + np.arange(source.size)]
-    pos = np.minimum(np.searchsorted(keys, target), keys.size - 1)
-    hit = keys[pos] == target
-    graph = sp.csr_matrix((np.ones(np.count_nonzero(hit), dtype=np.int8),
-                           (source[hit], pos[hit])), shape=(tet.size, tet.size))
-    _, label = connected_components(graph, directed=False)
-    home = np.searchsorted(keys, np.arange(rows.size, dtype=np.int64) * m + rows)
+    n = sub.indices.size
+    owner = np.repeat(np.arange(rows.size, dtype=np.int64), np.diff(sub.indptr))
+    # the pairs numbered 1..n, as the entries of a matrix of the rows' patterns
+    numbered = sp.csr_array((np.arange(1, n + 1, dtype=np.float64), sub.indices, sub.indptr),
+                            shape=sub.shape)
+    table = _neighbour_table(step)
+    width = table.shape[1]
+    found = numbered[np.repeat(owner, width), table[sub.indices].ravel()]
+    itself = np.repeat(np.arange(n, dtype=np.int64), width)
+    target = np.where(found > 0, found.astype(np.int64) - 1, itself)
+    graph = sp.csr_matrix((np.ones(target.size, dtype=np.int8), target,
+                           np.arange(0, target.size + 1, width, dtype=np.int64)),
+                          shape=(n, n))
+    # the graph is symmetric (a pair's neighbour in its row has it as a neighbour), so its
+    # strong components are its connected ones, found without a transpose
+    _, label = connected_components(graph, directed=True, connection="strong")
+    home = numbered[np.arange(rows.size), rows].astype(np.int64) - 1
     kept = label == label[home][owner]
     indptr = np.zeros(rows.size + 1, dtype=np.int64)
     np.cumsum(np.bincount(owner[kept], minlength=rows.size), out=indptr[1:])
-    return sp.csr_matrix((np.ones(np.count_nonzero(kept)), tet[kept], indptr),
+    return sp.csr_matrix((np.ones(np.count_nonzero(kept)), sub.indices[kept], indptr),
                          shape=(rows.size, m))
+
+
+def _neighbour_table(step: sp.csr_matrix) -> np.ndarray:
+    """``(m, w)``: each row's column indices of ``step`` (``w`` the longest row), padded
+    with the row itself."""
+    m = step.shape[0]
+    degree = np.diff(step.indptr)
+    width = max(int(degree.max()) if m else 1, 1)
+    table = np.repeat(np.arange(m, dtype=np.int64)[:, None], width, axis=1)
+    slot = np.arange(step.indices.size) - np.repeat(step.indptr[:-1], degree)
+    table[np.repeat(np.arange(m), degree), slot] = step.indices
+    return table
 
 
 def _within(c: np.ndarray, split: np.ndarray, radius: np.ndarray) -> np.ndarray:

@@ -70,10 +70,7 @@ def bordered_factor(base: Factorization, tie: np.ndarray,
     n = root.n
     if tie.max() >= n or np.any(np.bincount(tie, minlength=n) == 0):
         return None  # not every base dof has a copy left, or one that is not the base's
-    # the first new dof tied to each base dof represents it; the others are copies
-    order = np.argsort(tie, kind="stable")
-    first = np.r_[True, tie[order][1:] != tie[order][:-1]]
-    copies = np.sort(order[~first])
+    copies = _copies(tie)
     m = copies.size
     if m > copies_limit(root):
         return None
@@ -89,16 +86,9 @@ def bordered_factor(base: Factorization, tie: np.ndarray,
     fresh = np.setdiff1d(np.arange(m), new)
     if fresh.size:
         g[:, fresh] = root.solve(c[:, fresh].toarray())
-    s = d - c.T @ g
-    cho = None
-    if m:
-        try:
-            cho = la.cho_factor(s, lower=True)
-        except la.LinAlgError:
-            return None
-        # a pivot lost to round-off is a singular S too (as the direct solve's probe finds)
-        if np.min(np.diag(cho[0])) ** 2 <= SINGULAR * np.max(np.abs(np.diag(d))):
-            return None
+    cho = _schur_factor(d - c.T @ g, d) if m else None
+    if m and cho is None:
+        return None
     seconds = time.perf_counter() - start
 
     def solve(b: np.ndarray) -> np.ndarray:
@@ -121,6 +111,27 @@ def bordered_factor(base: Factorization, tie: np.ndarray,
     out.copy_ids, out.c, out.g = copies, c, g  # for the next insertion's reuse
     out.solved = int(fresh.size)  # columns of G back-solved here (the others reused)
     return out
+
+
+def _copies(tie: np.ndarray) -> np.ndarray:
+    """Sorted new dofs that are copies: the first new dof tied to each base dof represents
+    it, the others copy it."""
+    order = np.argsort(tie, kind="stable")
+    first = np.r_[True, tie[order][1:] != tie[order][:-1]]
+    return np.sort(order[~first])
+
+
+def _schur_factor(s: np.ndarray, d: np.ndarray):
+    """Cholesky factor of the Schur complement ``s``; ``None`` where it is not positive
+    definite, or a pivot was lost to round-off against ``d``'s diagonal (a singular S, as
+    the direct solve's probe finds)."""
+    try:
+        cho = la.cho_factor(s, lower=True)
+    except la.LinAlgError:
+        return None
+    if np.min(np.diag(cho[0])) ** 2 <= SINGULAR * np.max(np.abs(np.diag(d))):
+        return None
+    return cho
 
 
 def copies_limit(root: Factorization) -> float:

@@ -116,7 +116,7 @@ class ImplicitStepper:
         self.substeps = 1
         self.elastic_jacobian = self.jacobian(ops.stiffness)
         # K's columns of the constrained dofs: the force of moving prescribed values
-        self.fixed_columns = ops.stiffness.tocsc()[:, constrained.dofs].tocsr()
+        self.fixed_columns = ops.stiffness.tocsr()[:, constrained.dofs].tocsr()
         self.factor = None  # elastic Jacobian's factorization, made on first use
         self.seed = None  # after an insertion: (old factorization, tie) (solve.bordered)
         self.tangents = None  # full Newton's refactorizer, made on first use
