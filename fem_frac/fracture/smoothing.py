@@ -127,7 +127,8 @@ def _ring_neighbourhoods(step: sp.csr_matrix, rings: int, rows: np.ndarray) -> s
 
 def update_operator(operator: sp.csr_matrix, points: np.ndarray, tets: np.ndarray,
                     split: np.ndarray, *, length: float | None = None,
-                    rings: int | None = None, method: str = "neighbours") -> sp.csr_matrix:
+                    rings: int | None = None, method: str = "neighbours",
+                    volumes: np.ndarray | None = None) -> sp.csr_matrix:
     """The operator of a mesh just cracked, from the ``operator`` of the mesh before.
 
     ``operator``: :func:`smoothing_operator` of the mesh before with the same size;
@@ -138,7 +139,8 @@ def update_operator(operator: sp.csr_matrix, points: np.ndarray, tets: np.ndarra
     neighbourhood still connected to its tet (:func:`_reachable_within`). With ``rings``:
     the elements within ``rings + 1`` face-steps of a tet at a split vertex, rebuilt. The
     other rows are kept; the result equals :func:`smoothing_operator` on the new mesh, to
-    the bit. ``nodal`` is rebuilt whole.
+    the bit. ``nodal`` is rebuilt whole. ``volumes``: the tets' signed volumes where known
+    (a crack leaves them as they were).
     """
     if method != "neighbours":
         return smoothing_operator(points, tets, length=length, rings=rings, method=method)
@@ -162,7 +164,7 @@ def update_operator(operator: sp.csr_matrix, points: np.ndarray, tets: np.ndarra
             near = step @ near
         rows = np.flatnonzero(near)
         fresh = _ring_neighbourhoods(step, int(rings), rows)
-    volumes = np.abs(tet_volumes(points, tets))
+    volumes = np.abs(tet_volumes(points, tets) if volumes is None else volumes)
     return _replace_rows(operator, rows, _volume_weighted(fresh, volumes))
 
 

@@ -144,8 +144,10 @@ class _Topology:
     own: np.ndarray | None = None  # tets checked against their own stress (front_stress)
 
 
-def _topology(config: schema.Fracture, mesh: Mesh, smoothing, strict: bool) -> _Topology:
-    volumes = tet_volumes(mesh.points, mesh.tets)
+def _topology(config: schema.Fracture, mesh: Mesh, smoothing, strict: bool,
+              volumes: np.ndarray | None = None) -> _Topology:
+    """The caches of ``mesh``; ``volumes``: its tets' where known (a crack keeps them)."""
+    volumes = tet_volumes(mesh.points, mesh.tets) if volumes is None else volumes
     # debris: a new piece smaller than the median smoothing neighbourhood
     pattern = smoothing.copy()
     pattern.data[:] = 1.0
@@ -304,8 +306,10 @@ class FractureStage:
         made from ``topo.mesh``: the smoothing operator is rebuilt near them only."""
         s = self.config.smoothing
         smoothing = update_operator(topo.smoothing, mesh.points, mesh.tets, split,
-                                    length=s.length, rings=s.rings, method=s.method)
-        self._topo = _topology(self.config, mesh, smoothing, strict=False)
+                                    length=s.length, rings=s.rings, method=s.method,
+                                    volumes=topo.volumes)
+        self._topo = _topology(self.config, mesh, smoothing, strict=False,
+                               volumes=topo.volumes)
         return self._topo
 
 

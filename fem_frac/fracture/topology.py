@@ -22,6 +22,7 @@ Deterministic: the same input gives identical arrays (stable sorts, no hash orde
 from __future__ import annotations
 
 import hashlib
+from collections import OrderedDict
 from dataclasses import dataclass
 
 import numpy as np
@@ -89,8 +90,11 @@ def identity_transfer(n_points: int, n_tets: int) -> Transfer:
 # of its new mesh four times (debris check, smoothing update, site lookups), each a sort of
 # every face of every tet; open_crack derives the new tables' from the old one's (the old,
 # the split and the separated table: kept together).
-_PAIRS: dict[tuple, tuple] = {}
+_PAIRS: OrderedDict[tuple, tuple] = OrderedDict()
 _PAIRS_KEPT = 4
+# and their face adjacency, asked three times a batch (smoothing update, debris check,
+# site lookups); dropped with the pairs
+_ADJACENCY: dict[tuple, sp.csr_matrix] = {}
 
 
 def _face_pairs(tets: np.ndarray):
@@ -103,24 +107,24 @@ def _face_pairs(tets: np.ndarray):
     hash of the tets), read-only.
     """
     tets = np.ascontiguousarray(tets, dtype=np.int64)
-    key = (tets.shape, hashlib.blake2b(tets.data, digest_size=16).digest())
+    key = _key(tets)
     if key not in _PAIRS:
-        while len(_PAIRS) >= _PAIRS_KEPT:
-            _PAIRS.pop(next(iter(_PAIRS)))
-        pairs = _match_faces(tets)
-        for array in pairs:
-            array.flags.writeable = False
-        _PAIRS[key] = pairs
+        _seed_pairs(tets, _match_faces(tets))
     return _PAIRS[key]
+
+
+def _key(tets: np.ndarray) -> tuple:
+    """The caches' key of a connectivity: its shape and a hash of its contents."""
+    tets = np.ascontiguousarray(tets, dtype=np.int64)
+    return tets.shape, hashlib.blake2b(tets.data, digest_size=16).digest()
 
 
 def _seed_pairs(tets: np.ndarray, pairs) -> None:
     """Keep ``pairs`` as the matched faces of ``tets`` (made without a sort, by
     :func:`_kept_pairs`)."""
-    tets = np.ascontiguousarray(tets, dtype=np.int64)
-    key = (tets.shape, hashlib.blake2b(tets.data, digest_size=16).digest())
+    key = _key(tets)
     while len(_PAIRS) >= _PAIRS_KEPT:
-        _PAIRS.pop(next(iter(_PAIRS)))
+        _ADJACENCY.pop(_PAIRS.popitem(last=False)[0], None)
     for array in pairs:
         array.flags.writeable = False
     _PAIRS[key] = pairs
@@ -182,9 +186,16 @@ def _match_faces(tets: np.ndarray):
 
 
 def face_adjacency(tets: np.ndarray) -> sp.csr_matrix:
-    """Symmetric ``(m, m)`` 0/1 CSR matrix: entry ``(a, b)`` is 1 when tets a and b share a face."""
-    m = np.asarray(tets).shape[0]
+    """Symmetric ``(m, m)`` 0/1 CSR matrix: entry ``(a, b)`` is 1 when tets a and b share a
+    face. Kept with the matched faces: a copy is returned (callers may change theirs)."""
     r1, r2, _, _ = _face_pairs(tets)
+    key = _key(tets)
+    if key not in _ADJACENCY:
+        _ADJACENCY[key] = _adjacency(np.asarray(tets).shape[0], r1, r2)
+    return _ADJACENCY[key].copy()
+
+
+def _adjacency(m: int, r1: np.ndarray, r2: np.ndarray) -> sp.csr_matrix:
     a, b = r1 // 4, r2 // 4
     rows = np.concatenate([a, b])
     cols = np.concatenate([b, a])
