@@ -119,6 +119,25 @@ def test_reuses_the_columns_an_insertion_left_alone(monkeypatch):
         assert np.abs(f.solve(b) - p.solve(b)).max() <= 1e-10 * np.abs(exact).max()
 
 
+def test_two_factors_from_one_keep_their_own_columns(chain, monkeypatch):
+    """The columns of G live in one buffer along a chain; a second factor made from the
+    same one (a fork) must not write over the first's."""
+    (a0, _), (a1, tie1), (a2, tie2) = chain
+    monkeypatch.setattr(bordered, "SHARE", 1e9)
+    monkeypatch.setattr(bordered, "COPIES", 1e9)
+    one = bordered_factor(factorize(a0), tie1, a1)
+    two = bordered_factor(one, tie2, a2)
+    again = bordered_factor(one, tie2, a2)
+    assert again.columns is not two.columns and two.columns is one.columns
+    b = np.random.default_rng(2).standard_normal(a2.shape[0])
+    exact = spla.spsolve(a2.tocsc(), b)
+    for f in (two, again):
+        assert np.abs(f.solve(b) - exact).max() <= 1e-10 * np.abs(exact).max()
+    b1 = np.random.default_rng(3).standard_normal(a1.shape[0])
+    exact1 = spla.spsolve(a1.tocsc(), b1)
+    assert np.abs(one.solve(b1) - exact1).max() <= 1e-10 * np.abs(exact1).max()
+
+
 def test_refactorizes_past_its_share_of_copies(chain, monkeypatch):
     """The base is kept while G (n x m) holds at most SHARE of its factor's entries (where
     the backend reports them; else up to COPIES n^(1/3) copies), past that a fresh

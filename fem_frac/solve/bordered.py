@@ -80,37 +80,93 @@ def bordered_factor(base: Factorization, tie: np.ndarray,
     c = sp.csc_matrix(tied @ a[:, copies])  # (n, m), a few entries a column
     c.sort_indices()
     d = a[copies][:, copies].toarray()
-    g = np.empty((n, m), order="F")
     new, old = _unchanged_columns(prior, local[copies], c)
-    g[:, new] = prior.g[:, old] if new.size else 0.0
     fresh = np.setdiff1d(np.arange(m), new)
+    columns, slot = _Columns.for_factor(prior, n, new, old, fresh.size, 2 * m + 16)
+    ctg = np.empty((m, m))  # C^T G: that of the reused columns kept
+    ctg[np.ix_(new, new)] = prior.ctg[np.ix_(old, old)] if new.size else 0.0
     if fresh.size:
-        g[:, fresh] = root.solve(c[:, fresh].toarray())
-    cho = _schur_factor(d - c.T @ g, d) if m else None
+        g = root.solve(c[:, fresh].toarray())
+        columns.append(g)
+        block = c.T @ np.ascontiguousarray(g)
+        ctg[:, fresh], ctg[fresh, :] = block, block.T
+    cho = _schur_factor(d - ctg, d) if m else None
     if m and cho is None:
         return None
+    live = columns.live
     seconds = time.perf_counter() - start
+    solve = _solve(root, tied, tie, copies, c, cho, columns.buffer[:, :live], slot)
+    out = Factorization("bordered " + root.method, tie.size, solve)
+    out.factor_time = seconds
+    out.probe_residual = root.probe_residual
+    out.root, out.tie, out.copies = root, tie, m
+    # for the next insertion's reuse: the copies, C, G's columns (slots) and C^T G
+    out.copy_ids, out.c, out.columns, out.slot, out.ctg = copies, c, columns, slot, ctg
+    out.live = live
+    out.solved = int(fresh.size)  # columns of G back-solved here (the others reused)
+    return out
 
+
+def _solve(root, tied, tie, copies, c, cho, g, slot):
+    """``A' x = b`` (module docstring) with ``g`` the live columns of G, ``slot`` each
+    copy's column of it."""
     def solve(b: np.ndarray) -> np.ndarray:
         b = np.asarray(b, dtype=np.float64)
         one = b.ndim == 1
         b2 = b[:, None] if one else b
         y = root.solve(np.asarray(tied @ b2))
-        if not m:
+        if not copies.size:
             x = y[tie]
         else:
             z = la.cho_solve(cho, b2[copies] - c.T @ y)
-            x = (y - g @ z)[tie]
+            spread = np.zeros((g.shape[1], z.shape[1]))  # z on the slots of G's columns
+            spread[slot] = z
+            x = (y - g @ spread)[tie]
             x[copies] += z
         return x[:, 0] if one else x
 
-    out = Factorization("bordered " + root.method, tie.size, solve)
-    out.factor_time = seconds
-    out.probe_residual = root.probe_residual
-    out.root, out.tie, out.copies = root, tie, m
-    out.copy_ids, out.c, out.g = copies, c, g  # for the next insertion's reuse
-    out.solved = int(fresh.size)  # columns of G back-solved here (the others reused)
-    return out
+    return solve
+
+
+class _Columns:
+    """The columns of ``G`` that a chain of bordered factors on one root holds: ``buffer
+    (n, capacity)`` (Fortran order: a column is contiguous, ``G z`` reads the first
+    ``live``), filled in order. A factor's columns are slots of it; a later factor keeps
+    the slots of the columns it reuses and appends its new ones after the ``live`` ones,
+    so nothing is copied. Columns no factor uses any more stay as dead slots until the
+    buffer is full; then the live ones are copied into a new buffer."""
+
+    def __init__(self, n: int, capacity: int):
+        self.buffer = np.empty((n, capacity), order="F")
+        self.live = 0
+
+    @classmethod
+    def for_factor(cls, prior, n: int, new: np.ndarray, old: np.ndarray, k: int,
+                   capacity: int) -> tuple[_Columns, np.ndarray]:
+        """The buffer for a factor whose copies ``new`` reuse ``prior``'s columns ``old``
+        and that adds ``k`` columns, and its slots ``(len(new) + k,)`` (the new columns
+        in order, after the buffer's live ones)."""
+        m = new.size + k
+        slot = np.empty(m, dtype=np.int64)
+        fresh = np.setdiff1d(np.arange(m), new)
+        shared = prior is not None and hasattr(prior, "columns")
+        if shared and prior.columns.live == prior.live \
+                and prior.live + k <= prior.columns.buffer.shape[1]:
+            columns = prior.columns  # prior is its latest factor: append after its columns
+            slot[new] = prior.slot[old]
+        else:  # a fresh buffer, the reused columns copied to its front
+            columns = cls(n, max(capacity, m))
+            if new.size:
+                columns.buffer[:, : new.size] = prior.columns.buffer[:, prior.slot[old]]
+            columns.live = new.size
+            slot[new] = np.arange(new.size)
+        slot[fresh] = columns.live + np.arange(k)
+        return columns, slot
+
+    def append(self, g: np.ndarray) -> None:
+        k = g.shape[1]
+        self.buffer[:, self.live: self.live + k] = g
+        self.live += k
 
 
 def _copies(tie: np.ndarray) -> np.ndarray:
