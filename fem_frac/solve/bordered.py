@@ -19,16 +19,22 @@ Cholesky factor of the Schur complement ``S = D - C^T G``, a solve ``A' x = b`` 
 
 (one back-solve with the base factor and small dense work). Exact, not an iteration: the
 answer is the direct solve's to round-off. The same base serves a sequence of insertions,
-``tie`` composed through the meshes between; ``m`` grows with them, and so does the cost of
-``G`` (``m`` back-solves per new mesh).
+``tie`` composed through the meshes between, and ``m`` grows with them. A column of ``C``
+that an insertion left alone (the copy's elements unchanged; its entries summed again in
+another order where a neighbour split, so equal to ``REUSE`` of its size) keeps its column
+of ``G`` and of ``C^T G``: a new mesh back-solves only its new or changed columns. The
+columns live in one buffer along the chain (:class:`_Columns`), nothing copied.
 
 Policy (:func:`bordered_factor`), deterministic so that a run repeats itself to the bit:
-keep the base while ``m <= COPIES * n^(1/3)`` for ``n`` base free dofs. The set-up (``m``
-back-solves at once) grows with ``m``; a fresh factorization outgrows a back-solve as ``n``
-grows; ``COPIES`` = 2.5 puts the limit where the set-up costs half a fresh
-factorization in ``benchmarks/fracture.py`` (``m`` = 49 at 7,767 dofs, 96 at 56,484:
-measured 2026-12-02, docs/performance.md). Past it (or where the tie does not cover the
-base's free dofs, or ``S`` is not positive definite: a piece the new faces leave loose),
+keep the base while ``G`` holds at most ``SHARE`` (1) times the entries of the base's
+factor (``m <= SHARE nnz(L) / n``, PARDISO reports ``nnz(L)``): a solve then streams
+``G`` once against the factor twice, and ``G`` takes no more memory than the factor (its
+buffer, with columns no longer used, up to about twice; chosen among 0.25, 0.5, 1 and 2 on
+``cases/notched_beam.yaml``, docs/performance.md). Where
+the backend does not report ``nnz(L)``, keep it while ``m <= COPIES n^(1/3)`` (2.5: where
+the set-up of all ``m`` columns at once cost half a fresh factorization,
+docs/performance.md). Past it (or where the tie does not cover the base's free dofs, or
+``S`` is not positive definite: a piece the new faces leave loose),
 :func:`bordered_factor` returns ``None`` and the caller factorizes afresh (which reports a
 singular matrix properly).
 """
