@@ -254,26 +254,15 @@ def _within(c: np.ndarray, split: np.ndarray, radius: np.ndarray) -> np.ndarray:
 def _replace_rows(operator: sp.csr_matrix, rows: np.ndarray, fresh: sp.csr_matrix
                   ) -> sp.csr_matrix:
     """``operator`` with its rows ``rows`` (sorted, unique) replaced by the rows of ``fresh``
-    (``(len(rows), m)``): the kept rows' entries copied in order under one mask, the new
-    rows' under its complement (sorted indices)."""
+    (``(len(rows), m)``): the two stacked, then their rows gathered in the new order (one
+    copy of each kept row, in C), sorted indices kept."""
     fresh = sp.csr_matrix(fresh)
     fresh.sort_indices()
     operator.sort_indices()
     m = operator.shape[0]
-    old_lengths = np.diff(operator.indptr)
-    lengths = old_lengths.astype(np.int64)
-    lengths[rows] = np.diff(fresh.indptr)
-    indptr = np.zeros(m + 1, dtype=np.int64)
-    np.cumsum(lengths, out=indptr[1:])
-    replaced = np.zeros(m, dtype=bool)
-    replaced[rows] = True
-    kept = ~np.repeat(replaced, old_lengths)  # over the old entries
-    new = np.repeat(replaced, lengths)  # over the new entries
-    data = np.empty(indptr[-1])
-    indices = np.empty(indptr[-1], dtype=operator.indices.dtype)
-    data[~new], indices[~new] = operator.data[kept], operator.indices[kept]
-    data[new], indices[new] = fresh.data, fresh.indices
-    out = sp.csr_matrix((data, indices, indptr), shape=operator.shape)
+    index = np.arange(m)
+    index[rows] = m + np.arange(rows.size)
+    out = sp.vstack([operator, fresh], format="csr")[index]
     out.has_sorted_indices = True
     return out
 
