@@ -62,7 +62,8 @@ class Config:
         return f"P{self.order}-{self.size:g}-s{self.steps}-{self.method}{tol}{omp}"
 
     def env(self) -> dict:
-        env = dict(os.environ)
+        # as a user's installation runs: compiled modules cached (see benchmarks/cases.py)
+        env = {k: v for k, v in os.environ.items() if k != "PYTHONDONTWRITEBYTECODE"}
         if self.threads is not None:
             env["OMP_NUM_THREADS"] = str(self.threads)
         return env
