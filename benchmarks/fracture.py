@@ -38,13 +38,18 @@ from __future__ import annotations
 import argparse
 import gc
 import json
+import os
 import resource
 import subprocess
 import sys
 import time
 from pathlib import Path
 
-import numpy as np
+# numpy's OpenBLAS as the fem-frac command runs it (one thread unless the environment says
+# otherwise: fem_frac/app/cli.py), set before numpy loads it
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+
+import numpy as np  # noqa: E402
 
 LENGTHS = (0.1, 0.02, 0.02)
 TETS_PER_H3 = 4.5  # gmsh box: n_tets ~ TETS_PER_H3 * volume / h^3

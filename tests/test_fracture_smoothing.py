@@ -362,8 +362,8 @@ def test_largest_principal_closed_form():
 
 def test_principal_stress_exact_above_a_strength():
     """With ``exact_above`` the tensors that may exceed it are eigh's to the bit (a crack
-    criterion decides on them as before), the rest within round-off; non-finite stresses
-    still fail in eigh."""
+    criterion decides on them as before), the other values within round-off and their
+    directions not computed (NaN); non-finite stresses still fail in eigh."""
     from fem_frac.fracture.smoothing import _mostly_below
 
     rng = np.random.default_rng(9)
@@ -377,20 +377,15 @@ def test_principal_stress_exact_above_a_strength():
     np.testing.assert_array_equal(e[over], d[over])
     assert np.all(t1[~over] < strength)
     np.testing.assert_allclose(t1, s1, rtol=0, atol=1e-14 * np.abs(m).max())
-    gap = np.diff(np.linalg.eigvalsh(np.moveaxis(_matrices(m), 0, 0)), axis=1)[:, -1]
-    well = gap > 1e-3 * np.abs(m).max(axis=0)  # direction error ~ eps |A| / gap
-    np.testing.assert_allclose(e[well], d[well], rtol=0, atol=1e-10)
+    computed = np.all(np.isfinite(e), axis=1)
+    assert np.all(computed[over]) and 0 < np.count_nonzero(computed) < 0.1 * computed.size
+    np.testing.assert_array_equal(e[computed], d[computed])
+    assert np.all(np.isnan(e[~computed]))
     # where most tensors may exceed the level, eigh throughout
     assert not _mostly_below(m, np.quantile(s1, 0.3))
     m[0, 3] = np.nan
     with pytest.raises(SolverError):
         principal_stress(m, exact_above=strength)
-
-
-def _matrices(m):
-    from fem_frac.fem.tensors import matrices_from_mandel
-
-    return matrices_from_mandel(m)
 
 
 @pytest.mark.parametrize("size", [{"length": 0.45}, {"rings": 2}])

@@ -38,7 +38,7 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.csgraph import connected_components
 
-from ..fem.tensors import largest_principal, principal
+from ..fem.tensors import largest_value, principal
 from ..mesh.mesh import TET_EDGES, edge_keys, tet_volumes
 from .topology import face_adjacency
 
@@ -354,18 +354,20 @@ def principal_stress(element_stress: np.ndarray, exact_above: float | None = Non
     of its eigenspace, whichever LAPACK returns.
 
     ``exact_above``: the values are first found in closed form
-    (:func:`~fem_frac.fem.tensors.largest_principal`, to a few ulps), and only the tensors
+    (:func:`~fem_frac.fem.tensors.largest_value`, to a few ulps), and only the tensors
     whose value may exceed ``exact_above`` (a crack criterion's strength; a margin of 1e-9
     of the tensor's size covers the closed form's error) go through ``eigh``: those
-    values and directions are the same bits as without it, the others within round-off.
+    values and directions are the same bits as without it, the other values within
+    round-off, and the other directions, which a crack criterion never reads, NaN (where
+    most tensors may exceed the level, ``eigh`` runs throughout and gives them all).
     """
     stress = np.asarray(element_stress, dtype=float)
     if exact_above is not None and _mostly_below(stress, exact_above):
-        value, vector = largest_principal(stress)
+        value = largest_value(stress)
         size = np.abs(np.sum(stress[:3], axis=0)) + np.sqrt(np.sum(stress * stress, axis=0))
         near = value >= exact_above - EXACT_MARGIN * size
         if np.all(np.isfinite(value)) and np.count_nonzero(near) <= 0.5 * value.size:
-            vector = _oriented(vector)
+            vector = np.full(value.shape + (3,), np.nan)
             if near.any():
                 value[near], vector[near] = _oriented_eigh(stress[:, near])
             return value, vector
