@@ -213,7 +213,7 @@ def _reachable_within(old: sp.csr_matrix, step: sp.csr_matrix, rows: np.ndarray
                             shape=sub.shape)
     table = _neighbour_table(step)
     width = table.shape[1]
-    found = numbered[np.repeat(owner, width), table[sub.indices].ravel()]
+    found = np.asarray(numbered[np.repeat(owner, width), table[sub.indices].ravel()]).ravel()
     itself = np.repeat(np.arange(n, dtype=np.int64), width)
     target = np.where(found > 0, found.astype(np.int64) - 1, itself)
     graph = sp.csr_matrix((np.ones(target.size, dtype=np.int8), target,
@@ -222,7 +222,7 @@ def _reachable_within(old: sp.csr_matrix, step: sp.csr_matrix, rows: np.ndarray
     # the graph is symmetric (a pair's neighbour in its row has it as a neighbour), so its
     # strong components are its connected ones, found without a transpose
     _, label = connected_components(graph, directed=True, connection="strong")
-    home = numbered[np.arange(rows.size), rows].astype(np.int64) - 1
+    home = np.asarray(numbered[np.arange(rows.size), rows]).ravel().astype(np.int64) - 1
     kept = label == label[home][owner]
     indptr = np.zeros(rows.size + 1, dtype=np.int64)
     np.cumsum(np.bincount(owner[kept], minlength=rows.size), out=indptr[1:])
