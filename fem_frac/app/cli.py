@@ -19,8 +19,8 @@ from pathlib import Path
 # numpy's and scipy's OpenBLAS on one thread, unless the environment says otherwise (set
 # here, before numpy loads it). The dense work of a run is small (3x3 tensors, the n x m
 # blocks of a bordered factor), too small for a second thread to pay, and idle OpenBLAS
-# workers busy-wait between calls: on 2 cores they added 5-40 % to a run's CPU time at the
-# same wall time (docs/performance.md, "Idle BLAS threads"). PARDISO's threads are MKL's.
+# workers busy-wait between calls: on 2 cores they added 15-40 % to a run's CPU time at
+# the same wall time (docs/performance.md, "Idle BLAS threads"). PARDISO's threads are MKL's.
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
 from .. import __version__
