@@ -107,9 +107,13 @@ def _face_pairs(tets: np.ndarray):
     hash of the tets), read-only.
     """
     tets = np.ascontiguousarray(tets, dtype=np.int64)
-    key = _key(tets)
+    return _pairs_keyed(tets, _key(tets))
+
+
+def _pairs_keyed(tets: np.ndarray, key: tuple):
+    """:func:`_face_pairs` of ``tets`` whose :func:`_key` is ``key``."""
     if key not in _PAIRS:
-        _seed_pairs(tets, _match_faces(tets))
+        _seed_pairs(tets, _match_faces(tets), key)
     return _PAIRS[key]
 
 
@@ -119,11 +123,13 @@ def _key(tets: np.ndarray) -> tuple:
     return tets.shape, hashlib.blake2b(tets.data, digest_size=16).digest()
 
 
-def _seed_pairs(tets: np.ndarray, pairs) -> None:
+def _seed_pairs(tets: np.ndarray, pairs, key: tuple | None = None) -> None:
     """Keep ``pairs`` as the matched faces of ``tets`` (made without a sort, by
-    :func:`_kept_pairs`)."""
-    key = _key(tets)
-    while len(_PAIRS) >= _PAIRS_KEPT:
+    :func:`_kept_pairs`); ``key``: its :func:`_key` where known."""
+    key = _key(tets) if key is None else key
+    if key in _PAIRS:
+        _PAIRS.move_to_end(key)
+    while key not in _PAIRS and len(_PAIRS) >= _PAIRS_KEPT:
         _ADJACENCY.pop(_PAIRS.popitem(last=False)[0], None)
     for array in pairs:
         array.flags.writeable = False
@@ -188,8 +194,8 @@ def _match_faces(tets: np.ndarray):
 def face_adjacency(tets: np.ndarray) -> sp.csr_matrix:
     """Symmetric ``(m, m)`` 0/1 CSR matrix: entry ``(a, b)`` is 1 when tets a and b share a
     face. Kept with the matched faces: a copy is returned (callers may change theirs)."""
-    r1, r2, _, _ = _face_pairs(tets)
     key = _key(tets)
+    r1, r2, _, _ = _pairs_keyed(np.ascontiguousarray(tets, dtype=np.int64), key)
     if key not in _ADJACENCY:
         _ADJACENCY[key] = _adjacency(np.asarray(tets).shape[0], r1, r2)
     return _ADJACENCY[key].copy()

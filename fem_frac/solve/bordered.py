@@ -88,7 +88,7 @@ def bordered_factor(base: Factorization, tie: np.ndarray,
     d = a[copies][:, copies].toarray()
     new, old = _unchanged_columns(prior, local[copies], c)
     fresh = np.setdiff1d(np.arange(m), new)
-    columns, slot = _Columns.for_factor(prior, n, new, old, fresh.size, 2 * m + 16)
+    columns, slot = _Columns.for_factor(prior, n, new, old, fresh, 2 * m + 16)
     ctg = np.empty((m, m))  # C^T G: that of the reused columns kept
     ctg[np.ix_(new, new)] = prior.ctg[np.ix_(old, old)] if new.size else 0.0
     if fresh.size:
@@ -147,21 +147,20 @@ class _Columns:
         self.live = 0
 
     @classmethod
-    def for_factor(cls, prior, n: int, new: np.ndarray, old: np.ndarray, k: int,
+    def for_factor(cls, prior, n: int, new: np.ndarray, old: np.ndarray, fresh: np.ndarray,
                    capacity: int) -> tuple[_Columns, np.ndarray]:
         """The buffer for a factor whose copies ``new`` reuse ``prior``'s columns ``old``
-        and that adds ``k`` columns, and its slots ``(len(new) + k,)`` (the new columns
-        in order, after the buffer's live ones)."""
-        m = new.size + k
-        slot = np.empty(m, dtype=np.int64)
-        fresh = np.setdiff1d(np.arange(m), new)
+        and whose copies ``fresh`` add columns, and its slots ``(len(new) + len(fresh),)``
+        (the added columns in order, after the buffer's live ones)."""
+        k = fresh.size
+        slot = np.empty(new.size + k, dtype=np.int64)
         shared = prior is not None and hasattr(prior, "columns")
         if shared and prior.columns.live == prior.live \
                 and prior.live + k <= prior.columns.buffer.shape[1]:
             columns = prior.columns  # prior is its latest factor: append after its columns
             slot[new] = prior.slot[old]
         else:  # a fresh buffer, the reused columns copied to its front
-            columns = cls(n, max(capacity, m))
+            columns = cls(n, max(capacity, slot.size))
             if new.size:
                 columns.buffer[:, : new.size] = prior.columns.buffer[:, prior.slot[old]]
             columns.live = new.size
