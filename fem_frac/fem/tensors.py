@@ -126,7 +126,8 @@ def largest_principal(m: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 def largest_value(m: np.ndarray) -> np.ndarray:
     """The largest eigenvalue ``(...)`` of Mandel tensors ``(6, ...)``: the value of
-    :func:`largest_principal` (the same bits) without its vector, a twentieth of its cost."""
+    :func:`largest_principal` (the same bits) without its vector, about a sixth of its
+    cost (docs/performance.md)."""
     return _largest_value(tensor_from_mandel(np.asarray(m, dtype=float)))
 
 
