@@ -388,11 +388,17 @@ def test_principal_stress_exact_above_a_strength():
         principal_stress(m, exact_above=strength)
 
 
-@pytest.mark.parametrize("size", [{"length": 0.45}, {"rings": 2}])
-def test_update_after_a_crack_equals_a_rebuild(size):
+@pytest.mark.parametrize("size,block", [({"length": 0.45}, None), ({"length": 0.45}, 7),
+                                        ({"rings": 2}, None)])
+def test_update_after_a_crack_equals_a_rebuild(size, block, monkeypatch):
     """The operator updated near the split vertices is the one built afresh on the cracked
-    mesh, entry for entry (rows far from the crack cannot see it)."""
+    mesh, entry for entry (rows far from the crack cannot see it); also with the table of
+    (row, tet) pairs looked up a few rows at a time (``block``: entries per block)."""
+    import fem_frac.fracture.smoothing as smoothing
     from fem_frac.fracture.smoothing import update_operator
+
+    if block is not None:
+        monkeypatch.setattr(smoothing, "PAIR_BLOCK", block)
 
     mesh = structured_box((6, 3, 3), lengths=(2.0, 1.0, 1.0), distortion=0.1, seed=2)
     before = smoothing_operator(mesh.points, mesh.tets, **size)

@@ -247,6 +247,30 @@ def test_face_adjacency_counts():
     np.testing.assert_array_equal(4 * mesh.n_tets - degree.sum(), n_outer)
 
 
+def test_face_neighbours_are_the_tets_across_each_face():
+    """Face j of tet t (opposite corner j) is held by ``face_neighbours[t, j]`` too, that
+    tet is face-adjacent to t, and a face on the boundary or on a crack points back to t."""
+    from fem_frac.fracture.topology import face_neighbours
+
+    old = structured_box((4, 3, 3), distortion=0.1)
+    mesh, _ = open_crack(old, [_nearest(old, [0.5, 0.5, 0.5])], [[1.0, 0.2, 0.0]])
+    nb = face_neighbours(mesh.tets)
+    t = np.repeat(np.arange(mesh.n_tets), 4)
+    other = nb.ravel()
+    faces = mesh.tets[:, TET_FACES].reshape(-1, 3)
+    held = np.sort(faces, axis=1)
+    across = other != t
+    # the other tet holds the same three vertices
+    corners = mesh.tets[other[across]]
+    assert np.all((corners[:, :, None] == faces[across][:, None, :]).any(axis=1))
+    adj = face_adjacency(mesh.tets)
+    np.testing.assert_array_equal(np.asarray(adj[t[across], other[across]]).ravel(), 1)
+    assert np.count_nonzero(across) == adj.nnz
+    # a face no other tet holds is on the boundary (outer or the crack's two sides)
+    _, inverse, counts = np.unique(held, axis=0, return_inverse=True, return_counts=True)
+    np.testing.assert_array_equal(counts[inverse.ravel()] == 1, ~across)
+
+
 def test_deterministic():
     old = _with_boundaries(structured_box((4, 3, 3), distortion=0.1))
     vs = [_nearest(old, [0.5, 1 / 3, 1 / 3]), _nearest(old, [0.5, 2 / 3, 2 / 3])]

@@ -40,7 +40,7 @@ from scipy.sparse.csgraph import connected_components
 
 from ..fem.tensors import largest_value, principal
 from ..mesh.mesh import TET_EDGES, edge_keys, tet_volumes
-from .topology import face_adjacency
+from .topology import face_adjacency, face_neighbours
 
 METHODS = ("neighbours", "nodal")
 
@@ -147,16 +147,20 @@ def update_operator(operator: sp.csr_matrix, points: np.ndarray, tets: np.ndarra
     points = np.asarray(points, dtype=float)
     tets = np.asarray(tets, dtype=np.int64)
     m = tets.shape[0]
-    step = _face_steps(tets)
     split = np.asarray(split, dtype=float).reshape(-1, 3)
     at = _at_split(points, tets, split)
+    volumes = np.abs(tet_volumes(points, tets) if volumes is None else volumes)
     if length is not None:
         # a neighbourhood changes only where it held a tet at a split vertex (both tets of
         # an opened face hold one), and only loses tets: the new one of such a row is the
-        # part of its old one still reachable from the row's tet
+        # part of its old one still reachable from the row's tet; the rows that lost none
+        # are kept as they are
         rows = np.flatnonzero(operator @ (at >= 0).any(axis=1).astype(float))
-        fresh = _reachable_within(operator, step, rows)
+        fresh = _reachable_within(operator, face_neighbours(tets), rows)
+        lost = np.diff(fresh.indptr) < np.diff(operator.indptr)[rows]
+        rows, fresh = rows[lost], fresh[lost]
     else:
+        step = _face_steps(tets)
         c = centroids(points, tets)
         near = np.zeros(m)
         near[_within(c, split, _split_diameters(points, tets, at, split.shape[0]))] = 1.0
@@ -164,7 +168,6 @@ def update_operator(operator: sp.csr_matrix, points: np.ndarray, tets: np.ndarra
             near = step @ near
         rows = np.flatnonzero(near)
         fresh = _ring_neighbourhoods(step, int(rings), rows)
-    volumes = np.abs(tet_volumes(points, tets) if volumes is None else volumes)
     return _replace_rows(operator, rows, _volume_weighted(fresh, volumes))
 
 
@@ -195,51 +198,72 @@ def _split_diameters(points: np.ndarray, tets: np.ndarray, at: np.ndarray, k: in
     return out
 
 
-def _reachable_within(old: sp.csr_matrix, step: sp.csr_matrix, rows: np.ndarray
+def _reachable_within(old: sp.csr_matrix, neighbours: np.ndarray, rows: np.ndarray
                       ) -> sp.csr_matrix:
     """Pattern ``(len(rows), m)``: for each of ``rows``, the tets of its row of ``old`` (a
-    neighbourhood) that ``step`` (face adjacency with the diagonal) still connects to the
-    row's own tet within that row. One connected-components pass over the graph of
-    (row, tet) pairs, instead of growing the neighbourhoods ring by ring: each pair's
-    edges go to the pairs of the same row at its tet's face neighbours, found by a search
-    within that row (a pair whose neighbour is not in the row points to itself)."""
+    neighbourhood) that face-sharing paths (``neighbours (m, w)``: the tets across each
+    tet's faces, itself where none: :func:`~fem_frac.fracture.topology.face_neighbours`)
+    still connect to the row's own tet within that row. One connected-components pass over
+    the graph of (row, tet) pairs, instead of growing the neighbourhoods ring by ring: each
+    pair's edges go to the pairs of the same row at its tet's face neighbours (a pair whose
+    neighbour is not in the row points to itself), found in a table of the pairs by row
+    and tet (:func:`_pair_table`)."""
     m = old.shape[1]
     sub = old[rows]
     sub.sort_indices()
     n = sub.indices.size
     owner = np.repeat(np.arange(rows.size, dtype=np.int64), np.diff(sub.indptr))
-    # the pairs numbered 1..n, as the entries of a matrix of the rows' patterns
-    numbered = sp.csr_array((np.arange(1, n + 1, dtype=np.float64), sub.indices, sub.indptr),
-                            shape=sub.shape)
-    table = _neighbour_table(step)
-    width = table.shape[1]
-    found = np.asarray(numbered[np.repeat(owner, width), table[sub.indices].ravel()]).ravel()
+    width = neighbours.shape[1]
+    found = _pair_table(owner, sub.indices, m, neighbours[sub.indices])
     itself = np.repeat(np.arange(n, dtype=np.int64), width)
-    target = np.where(found > 0, found.astype(np.int64) - 1, itself)
+    target = np.where(found >= 0, found, itself.reshape(n, width)).ravel()
     graph = sp.csr_matrix((np.ones(target.size, dtype=np.int8), target,
                            np.arange(0, target.size + 1, width, dtype=np.int64)),
                           shape=(n, n))
     # the graph is symmetric (a pair's neighbour in its row has it as a neighbour), so its
     # strong components are its connected ones, found without a transpose
     _, label = connected_components(graph, directed=True, connection="strong")
-    home = np.asarray(numbered[np.arange(rows.size), rows]).ravel().astype(np.int64) - 1
-    kept = label == label[home][owner]
+    home = _pair_table(owner, sub.indices, m, rows[:, None], owners=np.arange(rows.size))
+    kept = label == label[home.ravel()][owner]
     indptr = np.zeros(rows.size + 1, dtype=np.int64)
     np.cumsum(np.bincount(owner[kept], minlength=rows.size), out=indptr[1:])
     return sp.csr_matrix((np.ones(np.count_nonzero(kept)), sub.indices[kept], indptr),
                          shape=(rows.size, m))
 
 
-def _neighbour_table(step: sp.csr_matrix) -> np.ndarray:
-    """``(m, w)``: each row's column indices of ``step`` (``w`` the longest row), padded
-    with the row itself."""
-    m = step.shape[0]
-    degree = np.diff(step.indptr)
-    width = max(int(degree.max()) if m else 1, 1)
-    table = np.repeat(np.arange(m, dtype=np.int64)[:, None], width, axis=1)
-    slot = np.arange(step.indices.size) - np.repeat(step.indptr[:-1], degree)
-    table[np.repeat(np.arange(m), degree), slot] = step.indices
-    return table
+# entries of one block of the dense (row, tet) table of _pair_table: 4 bytes each
+PAIR_BLOCK = 2**22
+
+
+def _pair_table(owner: np.ndarray, tet: np.ndarray, m: int, wanted: np.ndarray,
+                owners: np.ndarray | None = None) -> np.ndarray:
+    """For the pairs ``(owner[k], tet[k])`` (``k < n``, distinct) of rows over ``m`` tets:
+    the pair ``(owners[i], wanted[i, j])`` is, its number ``k``, -1 where none is;
+    ``owners`` defaults to ``owner``. Looked up in a dense table over the rows and the
+    tets the pairs hold, a block of rows at a time (at most :data:`PAIR_BLOCK` entries),
+    where a search would be a binary search per look-up."""
+    owners = owner if owners is None else owners
+    held = np.zeros(m, dtype=bool)
+    held[tet] = True
+    local = np.full(m + 1, -1, dtype=np.int64)  # -1 (the last entry) for tets no pair has
+    columns = np.flatnonzero(held)
+    local[columns] = np.arange(columns.size)
+    column = local[wanted]
+    out = np.zeros(wanted.shape, dtype=np.int64)
+    rows = int(owner[-1]) + 1 if owner.size else 0
+    per_block = max(PAIR_BLOCK // max(columns.size, 1), 1)
+    first = np.searchsorted(owner, np.arange(0, rows + per_block, per_block))
+    asked = np.searchsorted(owners, np.arange(0, rows + per_block, per_block))
+    for b in range(first.size - 1):
+        lo = b * per_block
+        # numbered from 1 in a zeroed block (calloc'd, no pass to fill it)
+        block = np.zeros((min(per_block, rows - lo), columns.size + 1), dtype=np.int32)
+        pairs = slice(first[b], first[b + 1])
+        block[owner[pairs] - lo, local[tet[pairs]]] = np.arange(first[b] + 1, first[b + 1] + 1)
+        ask = slice(asked[b], asked[b + 1])
+        out[ask] = block[(owners[ask] - lo)[:, None], column[ask]]
+    out -= 1
+    return out
 
 
 def _within(c: np.ndarray, split: np.ndarray, radius: np.ndarray) -> np.ndarray:
@@ -255,7 +279,10 @@ def _replace_rows(operator: sp.csr_matrix, rows: np.ndarray, fresh: sp.csr_matri
                   ) -> sp.csr_matrix:
     """``operator`` with its rows ``rows`` (sorted, unique) replaced by the rows of ``fresh``
     (``(len(rows), m)``): the two stacked, then their rows gathered in the new order (one
-    copy of each kept row, in C), sorted indices kept."""
+    copy of each kept row, in C), sorted indices kept; ``operator`` itself where no row
+    is replaced."""
+    if rows.size == 0:
+        return operator
     fresh = sp.csr_matrix(fresh)
     fresh.sort_indices()
     operator.sort_indices()

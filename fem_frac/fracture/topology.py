@@ -201,6 +201,16 @@ def face_adjacency(tets: np.ndarray) -> sp.csr_matrix:
     return _ADJACENCY[key].copy()
 
 
+def face_neighbours(tets: np.ndarray) -> np.ndarray:
+    """``(m, 4)`` int64: the tet across each face of each tet (face ``j`` opposite corner
+    ``j``), the tet itself where no other holds the face (the boundary, a crack)."""
+    r1, r2, _, _ = _face_pairs(tets)
+    m = np.asarray(tets).shape[0]
+    out = np.repeat(np.arange(m, dtype=np.int64), 4)
+    out[r1], out[r2] = r2 // 4, r1 // 4
+    return out.reshape(m, 4)
+
+
 def _adjacency(m: int, r1: np.ndarray, r2: np.ndarray) -> sp.csr_matrix:
     a, b = r1 // 4, r2 // 4
     rows = np.concatenate([a, b])
