@@ -29,7 +29,8 @@ PIECES = [
     "fem_frac.solve.bordered:bordered_factor",  # looked up there by the stepper
     "fem_frac.solve.constrained:factorize",  # fresh factorizations (the first included)
     "fem_frac.fracture.stage:update_operator",
-    "fem_frac.fracture.stage:open_crack",
+    "fem_frac.fracture.stage:cut_tets",
+    "fem_frac.fracture.stage:rebuilt",
     "fem_frac.fracture.stage:rediscretize",
     "fem_frac.fracture.stage:_topology",
     "fem_frac.fracture.stage:principal_stress",

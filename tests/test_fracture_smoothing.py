@@ -332,8 +332,9 @@ def test_principal_direction_orientation():
 
 
 def test_largest_principal_closed_form():
-    """The closed form against eigh: the value to a few ulps of the tensor's size (the
-    trigonometric solution is backward stable in the value, gap or no gap), the vector an
+    """The closed form against eigh: the value to a few ulps of the tensor's size where
+    the largest value stands apart or is repeated exactly, to sqrt(eps) of it where the top
+    two nearly coincide (the cubic's phase where arccos is ill-conditioned); the vector an
     eigenvector; repeated and all-equal values included."""
     from fem_frac.fem.tensors import largest_principal
 
@@ -358,6 +359,16 @@ def test_largest_principal_closed_form():
     np.testing.assert_array_equal(vector[1], [0.0, 0.0, 1.0])
     # a repeated largest value: a vector of its eigenspace (orthogonal to the third)
     assert abs(vector[2] @ q[:, 2]) < 1e-12
+    # the top two nearly coincide: within sqrt(eps) of the size, not a few ulps
+    gaps = np.repeat(10.0 ** np.arange(-10.0, -5.0, 0.5), 200)
+    qs, _ = np.linalg.qr(rng.normal(size=(gaps.size, 3, 3)))
+    near = np.einsum("nij,nj,nkj->nik", qs, np.stack(
+        [np.ones_like(gaps), 1.0 - gaps, -np.ones_like(gaps)], axis=1), qs)
+    value, _ = largest_principal(mandel_from_matrix(np.moveaxis(near, 0, -1)))
+    error = np.abs(value - np.linalg.eigvalsh(near)[:, -1])
+    size = np.linalg.norm(near, axis=(1, 2))
+    assert np.all(error <= np.sqrt(np.finfo(float).eps) * size)
+    assert error.max() > 1e3 * np.finfo(float).eps  # not a few ulps there
 
 
 def test_principal_stress_exact_above_a_strength():
@@ -386,6 +397,30 @@ def test_principal_stress_exact_above_a_strength():
     m[0, 3] = np.nan
     with pytest.raises(SolverError):
         principal_stress(m, exact_above=strength)
+
+
+def test_principal_stress_exact_above_with_the_largest_value_nearly_repeated():
+    """sigma1 ~ sigma2 > sigma3 (equibiaxial tension): the closed form's phase sits where
+    acos is ill-conditioned, and its value is off by up to ~sqrt(eps) of the tensor's size.
+    The tensors whose eigh value reaches the strength still go through eigh: the margin
+    covers that error."""
+    rng = np.random.default_rng(11)
+    n, strength = 4000, 3e6
+    q, _ = np.linalg.qr(rng.normal(size=(n, 3, 3)))
+    # the top pair 1e-8 to 5e-8 of the size apart, where the closed form is lowest (by
+    # up to ~1.6e-8 of the size), straddling the strength by up to 3e-8 of the size
+    size = 1e8
+    top = strength + size * rng.uniform(-3e-8, 3e-8, size=n)
+    values = np.stack([top, top - size * rng.uniform(1e-8, 5e-8, size=n),
+                       np.full(n, -size)], axis=1)
+    mats = np.einsum("nij,nj,nkj->nik", q, values, q)
+    m = mandel_from_matrix(np.moveaxis(mats, 0, -1))
+    m = np.concatenate([m, np.zeros((6, 4 * n))], axis=1)  # mostly below: the closed form
+    s1, _ = principal_stress(m)
+    t1, _ = principal_stress(m, exact_above=strength)
+    over = s1 >= strength
+    assert 0.3 * n < np.count_nonzero(over) < 0.7 * n
+    np.testing.assert_array_equal(t1[over], s1[over])
 
 
 @pytest.mark.parametrize("size,block", [({"length": 0.45}, None), ({"length": 0.45}, 7),

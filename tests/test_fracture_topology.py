@@ -271,6 +271,29 @@ def test_face_neighbours_are_the_tets_across_each_face():
     np.testing.assert_array_equal(counts[inverse.ravel()] == 1, ~across)
 
 
+def test_boundary_rows_kept_through_insertions_equal_a_lookup():
+    """The second insertion finds the groups at the face rows the first one recorded; the
+    groups are those of a lookup in every face (the rows forgotten), in the same order and
+    orientation."""
+    from fem_frac.fracture import topology
+
+    old = _with_boundaries(structured_box((4, 3, 3), distortion=0.1))
+    one, _ = open_crack(old, [_nearest(old, [0.5, 1 / 3, 1 / 3])], [[1.0, 0.2, 0.0]])
+    assert one in topology._BOUNDARY_ROWS
+    vs, normals = [_nearest(one, [0.5, 2 / 3, 2 / 3])], [[0.0, 1.0, 1.0]]
+    kept, _ = open_crack(one, vs, normals)
+    rows = topology._BOUNDARY_ROWS.pop(one)
+    looked_up, _ = open_crack(one, vs, normals)
+    assert kept.boundaries.keys() == looked_up.boundaries.keys() == {"outer", "left", CRACK}
+    for name in kept.boundaries:
+        np.testing.assert_array_equal(kept.boundaries[name], looked_up.boundaries[name])
+    # rows that do not hold a group's triangles (stale) are not trusted
+    topology._BOUNDARY_ROWS[one] = {**rows, "outer": rows["outer"][::-1]}
+    checked, _ = open_crack(one, vs, normals)
+    np.testing.assert_array_equal(checked.boundaries["outer"], looked_up.boundaries["outer"])
+    assert len(kept.boundaries[CRACK]) > len(one.boundaries[CRACK]) > 0
+
+
 def test_deterministic():
     old = _with_boundaries(structured_box((4, 3, 3), distortion=0.1))
     vs = [_nearest(old, [0.5, 1 / 3, 1 / 3]), _nearest(old, [0.5, 2 / 3, 2 / 3])]

@@ -202,3 +202,28 @@ def test_the_mass_solve_benchmark_runs():
     row = out.stdout.strip().splitlines()[-1].split("|")
     assert row[1].strip() == "P1" and row[2].strip() == "384"
     assert float(row[-2]) < 1e-11  # the two solutions agree
+
+
+@pytest.mark.parametrize("order", [1, 2])
+def test_vector_mass_is_the_scalar_kron_identity(order):
+    """The vector mass holds the scalar mass's entries once per component: kron(M, I_3),
+    entry for entry, with sorted indices."""
+    import scipy.sparse as sp
+
+    from fem_frac.fem.mass import _scalar_element_dofs, element_scalar_mass
+
+    space = build_space(box(), order)
+    m = consistent_mass(space, RHO)
+    me = element_scalar_mass(space, RHO)
+    dofs = _scalar_element_dofs(space)
+    k = dofs.shape[1]
+    scalar = sp.coo_matrix((me.ravel(), (np.repeat(dofs, k, axis=1).ravel(),
+                                         np.tile(dofs, k).ravel())),
+                           shape=(space.n_nodes,) * 2).tocsr()
+    expected = sp.kron(scalar, sp.eye(3), format="csr")
+    expected.sort_indices()
+    for a in ("indptr", "indices", "data"):
+        np.testing.assert_array_equal(getattr(m, a), getattr(expected, a))
+    # element masses given (a crack's reconnected mesh keeps them): the same matrix
+    again = consistent_mass(space, RHO, me)
+    np.testing.assert_array_equal(again.data, m.data)

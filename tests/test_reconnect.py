@@ -69,3 +69,18 @@ def test_not_a_reconnection_is_refused():
     assert changed_tets(tets, tets[::-1], ids) is None  # tets reordered
     assert changed_tets(tets, tets[1:], ids) is None  # a tet gone
     assert changed_tets(tets, tets, ids[::-1]) is None  # old ids not kept
+
+
+@pytest.mark.parametrize("order", [1, 2])
+def test_element_masses_survive_a_crack(order):
+    """A crack moves no tet: the scalar element masses of the cracked mesh are the old
+    ones to the bit, so a reconnected discretization carries them over
+    (solve.discretization) and its consistent mass is the fresh one."""
+    from fem_frac.fem.mass import consistent_mass, element_scalar_mass
+
+    for old, new, _ in _cracked(0.15):
+        old_space, new_space = build_space(old, order), build_space(new, order)
+        kept = element_scalar_mass(old_space, 7800.0)
+        np.testing.assert_array_equal(kept, element_scalar_mass(new_space, 7800.0))
+        np.testing.assert_array_equal(consistent_mass(new_space, 7800.0, kept).data,
+                                      consistent_mass(new_space, 7800.0).data)

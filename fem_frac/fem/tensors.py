@@ -91,8 +91,11 @@ def largest_principal(m: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     per tensor (about 5x cheaper than :func:`principal` for 1e5 tensors).
 
     The value by the trigonometric solution of the characteristic cubic of the deviator
-    (O. K. Smith, Comm. ACM 4(4), 1961): its error is a few ulps of the deviator's size
-    whatever the gap to the second value, but it is not :func:`principal`'s to the bit.
+    (O. K. Smith, Comm. ACM 4(4), 1961), not :func:`principal`'s to the bit: its error is a
+    few ulps of the deviator's size where the largest value stands apart (or the top two
+    are equal), but where the top two nearly coincide (a gap of 1e-10 to 1e-7 of the
+    size) the cubic's phase sits where ``arccos`` is ill-conditioned, and the error grows
+    to ~sqrt(eps) of the size (1.6e-8 measured at a gap of 3e-8).
     The vector: the largest cross product of two rows of ``A - lambda I``; where the value
     is repeated (the cross products below ``RANK_ONE`` of the rows' size) one vector of
     its eigenspace, where all three are equal (0, 0, 1). Near a repeated value the vector

@@ -26,6 +26,7 @@ from collections.abc import Callable
 from dataclasses import dataclass, replace
 
 import numpy as np
+import scipy.sparse as sp
 
 from ..config import schema
 from ..errors import CaseError, SolverError
@@ -43,7 +44,7 @@ from .front import continue_planes, crack_front, front_normals, near_crack
 from .planes import PlaneSites, normal_stress, plane_sites
 from .sites import Sites, select_sites, star, tilt
 from .smoothing import principal_stress, smooth, smoothing_operator, update_operator
-from .topology import CRACK, extract, fragments, open_crack
+from .topology import CRACK, cut_tets, extract, fragments, rebuilt
 
 # A piece that a crack cuts off without support in a static run is dropped as a sliver when
 # its volume is below this fraction of the body's (larger ones stop the run).
@@ -148,9 +149,10 @@ def _topology(config: schema.Fracture, mesh: Mesh, smoothing, strict: bool,
               volumes: np.ndarray | None = None) -> _Topology:
     """The caches of ``mesh``; ``volumes``: its tets' where known (a crack keeps them)."""
     volumes = tet_volumes(mesh.points, mesh.tets) if volumes is None else volumes
-    # debris: a new piece smaller than the median smoothing neighbourhood
-    pattern = smoothing.copy()
-    pattern.data[:] = 1.0
+    # debris: a new piece smaller than the median smoothing neighbourhood (the pattern
+    # shares the operator's index arrays)
+    pattern = sp.csr_matrix((np.ones(smoothing.nnz), smoothing.indices, smoothing.indptr),
+                            shape=smoothing.shape)
     on_crack = np.zeros(mesh.n_points, dtype=bool)
     on_crack[np.asarray(mesh.boundaries.get(CRACK, np.zeros((0, 3), int))).ravel()] = True
     front = near = normals = None
@@ -366,22 +368,27 @@ class FractureStage:
         cannot even resolve) are dropped and the rest opened again from the mesh."""
         mesh, dropped = topo.mesh, []
         while len(sites):
-            new, transfer = open_crack(mesh, sites.vertices, sites.normals)
-            if transfer.n_new_points == mesh.n_points:
+            # the tets first: a batch that sheds debris is tried again without its sites
+            # before the mesh around the tets is made
+            tets, node_map = cut_tets(mesh, sites.vertices, sites.normals)
+            if node_map.size == mesh.n_points:
                 dropped.extend(sites.vertices.tolist())
                 break
             if self.config.fracture_energy is not None:
                 # new cohesive faces hold: nothing comes off (pieces counted on the state)
-                return sites, new, transfer, np.array(dropped, dtype=np.int64), None
-            count, labels = fragments(new.tets)
+                return (sites, *rebuilt(mesh, tets, node_map),
+                        np.array(dropped, dtype=np.int64), None)
+            count, labels = fragments(tets)
             volume = np.bincount(labels, weights=topo.volumes, minlength=count)
             debris = np.flatnonzero(volume < topo.debris_volume)
             if count == n_pieces or debris.size == 0:
-                return sites, new, transfer, np.array(dropped, dtype=np.int64), (count, labels)
-            touched = transfer.node_map[new.tets[np.isin(labels, debris)]].ravel()
+                return (sites, *rebuilt(mesh, tets, node_map),
+                        np.array(dropped, dtype=np.int64), (count, labels))
+            touched = node_map[tets[np.isin(labels, debris)]].ravel()
             bad = np.isin(sites.vertices, touched)
             if not bad.any():  # not caused by a split of this batch: nothing to drop
-                return sites, new, transfer, np.array(dropped, dtype=np.int64), (count, labels)
+                return (sites, *rebuilt(mesh, tets, node_map),
+                        np.array(dropped, dtype=np.int64), (count, labels))
             dropped.extend(sites.vertices[bad].tolist())
             sites = sites.subset(~bad)
         return sites, None, None, np.array(dropped, dtype=np.int64), None

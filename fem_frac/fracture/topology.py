@@ -9,7 +9,8 @@ of shared vertices. A mesh is never edited in place; every operation returns a n
 - :func:`split_vertex`: separate the tets around one vertex along a plane through it.
 - :func:`separate_nonmanifold`: give every face-connected fan of tets around a vertex its
   own copy of the vertex (pieces joined only at a vertex or along an edge come apart).
-- :func:`open_crack`: a batch of plane splits followed by one non-manifold separation.
+- :func:`open_crack`: a batch of plane splits followed by one non-manifold separation
+  (:func:`cut_tets`, the new tet table, then :func:`rebuilt`, the mesh around it).
 
 New vertices are appended after the old ones (old ids keep their meaning), each a copy of
 an old vertex at the same reference position. Faces that were interior and became exterior
@@ -22,6 +23,7 @@ Deterministic: the same input gives identical arrays (stable sorts, no hash orde
 from __future__ import annotations
 
 import hashlib
+import weakref
 from collections import OrderedDict
 from dataclasses import dataclass
 
@@ -95,6 +97,10 @@ _PAIRS_KEPT = 4
 # and their face adjacency, asked three times a batch (smoothing update, debris check,
 # site lookups); dropped with the pairs
 _ADJACENCY: dict[tuple, sp.csr_matrix] = {}
+# The face rows (4 tet + local face) of each boundary group of a mesh rebuilt() made: a
+# tet keeps its row through every later insertion, so the next rebuild finds the groups
+# there instead of in a sort of every face. Dropped with the mesh.
+_BOUNDARY_ROWS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 
 
 def _face_pairs(tets: np.ndarray):
@@ -288,32 +294,40 @@ def _split_plane(tets, points, vertex, normal, incidences) -> bool:
     return True
 
 
-def _rebuild(old: Mesh, tets: np.ndarray, node_map: np.ndarray) -> tuple[Mesh, Transfer]:
-    """The new mesh on ``tets`` (ids into ``old.points[node_map]``): boundaries re-expressed,
-    the ``crack`` group extended by the newly exposed faces, curved edges remapped."""
+def rebuilt(old: Mesh, tets: np.ndarray, node_map: np.ndarray) -> tuple[Mesh, Transfer]:
+    """The new mesh on ``tets`` (ids into ``old.points[node_map]``; :func:`cut_tets`):
+    boundaries re-expressed, the ``crack`` group extended by the newly exposed faces,
+    curved edges remapped."""
     n_old = old.n_points
     points = old.points[node_map]
 
-    # every face of the new mesh, and its image in old ids
+    # every face of the new mesh (rows 4 tet + local face: a tet keeps its row, and the
+    # image of row r in old ids is the old face at row r)
     faces = tets[:, TET_FACES].reshape(-1, 3)
-    image = SortedKeys(facet_keys(node_map[faces], n_old))  # ties: lowest tet first
-
-    boundaries = {}
+    known = _BOUNDARY_ROWS.get(old, {})
+    image = None
+    boundaries, rows = {}, {}
     for name, tri in old.boundaries.items():
         tri = np.asarray(tri, dtype=np.int64).reshape(-1, 3)
-        row = image.rows(facet_keys(tri, n_old))
-        if np.any(row < 0):
-            raise ValueError(f"boundary {name!r}: facets that are not faces of the mesh")
-        f = faces[row]  # (k, 3) new ids, any order
+        row = known.get(name)
+        if row is not None and row.size == tri.shape[0]:
+            same = _corners(node_map[faces[row]], tri)
+        if row is None or row.size != tri.shape[0] or not same.any(axis=2).all():
+            if image is None:  # ties: lowest tet first
+                image = SortedKeys(facet_keys(node_map[faces], n_old))
+            row = image.rows(facet_keys(tri, n_old))
+            if np.any(row < 0):
+                raise ValueError(f"boundary {name!r}: facets that are not faces of the mesh")
+            same = _corners(node_map[faces[row]], tri)
         # keep the caller's vertex order (and so the orientation) of every triangle
-        same = node_map[f][:, None, :] == tri[:, :, None]  # (k, 3 caller, 3 face)
-        boundaries[name] = np.take_along_axis(f, np.argmax(same, axis=2), axis=1)
+        boundaries[name] = np.take_along_axis(faces[row], np.argmax(same, axis=2), axis=1)
+        rows[name] = row
 
-    # the tets keep their rows: a face is newly exposed where its row was held by two
-    # tets and is held by one now
-    exposed = faces[_held(old.tets) & ~_held(tets)]
+    # a face is newly exposed where its row was held by two tets and is held by one now
+    exposed = np.flatnonzero(_held(old.tets) & ~_held(tets))
+    rows[CRACK] = np.concatenate([rows.get(CRACK, np.empty(0, dtype=np.int64)), exposed])
     boundaries[CRACK] = np.concatenate(
-        [boundaries.get(CRACK, np.empty((0, 3), dtype=np.int64)), exposed]
+        [boundaries.get(CRACK, np.empty((0, 3), dtype=np.int64)), faces[exposed]]
     ).astype(np.int64)
 
     edges, edge_points = old.edges, old.edge_points
@@ -331,7 +345,14 @@ def _rebuild(old: Mesh, tets: np.ndarray, node_map: np.ndarray) -> tuple[Mesh, T
         edges=edges,
         edge_points=edge_points,
     )
+    _BOUNDARY_ROWS[mesh] = rows
     return mesh, Transfer(node_map, np.arange(old.n_tets, dtype=np.int64))
+
+
+def _corners(faces: np.ndarray, tri: np.ndarray) -> np.ndarray:
+    """``(k, 3, 3)``: corner ``j`` of ``faces[i]`` is corner ``c`` of ``tri[i]``, at
+    ``[i, c, j]``."""
+    return faces[:, None, :] == tri[:, :, None]
 
 
 def separate_nonmanifold(mesh: Mesh) -> tuple[Mesh, Transfer]:
@@ -343,7 +364,7 @@ def separate_nonmanifold(mesh: Mesh) -> tuple[Mesh, Transfer]:
     fan on both sides, so the exterior faces and the ``crack`` group stay as they are.
     """
     tets, node_map = _separate_tets(mesh.tets, mesh.n_points)
-    return _rebuild(mesh, tets, node_map)
+    return rebuilt(mesh, tets, node_map)
 
 
 def split_vertex(mesh: Mesh, vertex: int, normal, separate: bool = True) -> tuple[Mesh, Transfer]:
@@ -365,6 +386,14 @@ def open_crack(mesh: Mesh, vertices, normals, separate: bool = True) -> tuple[Me
     meaning through the batch: a later split of a vertex acts on the tets still holding the
     original id, i.e. its + side). ``normals (k, 3)``; only their direction matters.
     """
+    return rebuilt(mesh, *cut_tets(mesh, vertices, normals, separate))
+
+
+def cut_tets(mesh: Mesh, vertices, normals, separate: bool = True
+             ) -> tuple[np.ndarray, np.ndarray]:
+    """The tet table and node map of :func:`open_crack` (``(new tets (m, 4), node_map)``),
+    without the mesh around them (its boundary groups): enough to count the pieces a batch
+    would make before :func:`rebuilt` makes the mesh."""
     vertices = np.atleast_1d(np.asarray(vertices, dtype=np.int64))
     normals = np.asarray(normals, dtype=float).reshape(-1, 3)
     if vertices.shape[0] != normals.shape[0]:
@@ -395,7 +424,7 @@ def open_crack(mesh: Mesh, vertices, normals, separate: bool = True) -> tuple[Me
         node_map = node_map[later]
         if pairs is not None:  # a separation gives no face to another tet
             _seed_pairs(tets, _kept_pairs(pairs, split, tets))
-    return _rebuild(mesh, tets, node_map)
+    return tets, node_map
 
 
 def extract(mesh: Mesh, keep) -> tuple[Mesh, Transfer]:

@@ -113,20 +113,39 @@ def discretize(recipe: Recipe, mesh: Mesh, timer: StageTimer, strict: bool = Tru
                           stepper, limit)
 
 
-def _reconnected(recipe: Recipe, space: Space, tangent: np.ndarray, previous: tuple | None):
-    """``(strain operator, stiffness)`` of ``space`` from the ``previous`` discretization's
-    (:mod:`fem_frac.fem.reconnect`), or ``None`` where that does not apply: quadratic tets,
-    the averaged formulation, or a mesh that is not the old one reconnected."""
-    from ..fem.reconnect import changed_tets, reconnect
+def _changed(space: Space, previous: tuple | None) -> np.ndarray | None:
+    """The tets a crack insertion changed, where ``space``'s mesh is the ``previous``
+    discretization's reconnected (:func:`~fem_frac.fem.reconnect.changed_tets`: the same
+    tets, at the same places, in the same order), else ``None``."""
+    from ..fem.reconnect import changed_tets
 
-    if previous is None or recipe.order != 1 or recipe.formulation != "standard":
+    if previous is None:
         return None
     old, node_map = previous
-    changed = changed_tets(old.mesh.tets, space.mesh.tets, node_map)
-    if changed is None:
+    return changed_tets(old.mesh.tets, space.mesh.tets, node_map)
+
+
+def _reconnected(recipe: Recipe, space: Space, tangent: np.ndarray, previous: tuple | None,
+                 changed: np.ndarray | None):
+    """``(strain operator, stiffness)`` of ``space`` from the ``previous`` discretization's
+    (:mod:`fem_frac.fem.reconnect`), or ``None`` where that does not apply: quadratic tets,
+    the averaged formulation, or a mesh that is not the old one reconnected (``changed``:
+    :func:`_changed`)."""
+    from ..fem.reconnect import reconnect
+
+    if changed is None or recipe.order != 1 or recipe.formulation != "standard":
         return None
+    old, _ = previous
     return reconnect(old.ops.strain_operator, old.ops.stiffness, tangent, space,
                      np.asarray(old.mesh.tets), np.asarray(space.mesh.tets), changed)
+
+
+def _kept_element_mass(previous: tuple | None, changed: np.ndarray | None
+                       ) -> np.ndarray | None:
+    """The ``previous`` discretization's scalar element masses where the new mesh is its
+    mesh reconnected (``changed``: :func:`_changed`; a crack moves no tet and changes no
+    material), else ``None``."""
+    return None if changed is None else previous[0].ops.element_mass
 
 
 def _seed(previous: tuple | None, space: Space, ops: Operators, constrained: Constrained):
@@ -203,22 +222,26 @@ def build_operators(recipe: Recipe, space: Space, materials: ElementMaterials,
         d = law.elastic_tangent
         if d.ndim == 4:  # per element: one value for every quadrature point
             d = np.ascontiguousarray(np.broadcast_to(d, (6, 6) + space.basis.dx.shape))
-        reused = _reconnected(recipe, space, d, previous)
+        changed = _changed(space, previous)
+        reused = _reconnected(recipe, space, d, previous, changed)
         if reused is not None:
             op, k = reused
         else:
             op = strain_operator(space, recipe.formulation)
             k = op.stiffness(d)
-    mass = damping = None
+    mass = damping = element_mass = None
     if recipe.dynamic:
-        from ..fem.mass import consistent_mass, lumped_mass
+        from ..fem.mass import consistent_mass, element_scalar_mass, lumped_mass
 
         analysis = recipe.analysis
         with timer("mass"):
             if analysis.mass_kind == "lumped":
                 mass = sp.diags(lumped_mass(space, materials.density)).tocsr()
             else:
-                mass = consistent_mass(space, materials.density)
+                element_mass = _kept_element_mass(previous, changed)
+                if element_mass is None:
+                    element_mass = element_scalar_mass(space, materials.density)
+                mass = consistent_mass(space, materials.density, element_mass)
             if analysis.rayleigh is not None:
                 r = analysis.rayleigh
                 damping = (r.mass * mass + r.stiffness * k).tocsr()
@@ -227,7 +250,7 @@ def build_operators(recipe: Recipe, space: Space, materials: ElementMaterials,
         with timer("cohesive faces"):
             interface = build_interface(recipe.cohesive, space.mesh, space,
                                         materials.youngs_modulus)
-    return Operators(op, k, mass, damping, interface)
+    return Operators(op, k, mass, damping, interface, element_mass)
 
 
 def scheme(analysis, dt: float) -> integrators.Implicit:

@@ -23,13 +23,15 @@ class Operators:
     """What one topology provides: the strain operator (``strain``, ``internal_force``,
     ``stiffness``), the elastic stiffness, and the mass and damping matrices when there is
     inertia (``mass`` a sparse matrix, consistent or diagonal); the cohesive crack faces
-    (``interface``) when cracks carry a fracture energy."""
+    (``interface``) when cracks carry a fracture energy; the consistent mass's scalar
+    element masses (``element_mass``), which a crack insertion leaves as they are."""
 
     strain_operator: object
     stiffness: sp.csr_matrix
     mass: sp.csr_matrix | None = None
     damping: sp.csr_matrix | None = None
     interface: Interface | None = None
+    element_mass: np.ndarray | None = None
 
     @property
     def weights(self) -> np.ndarray:
