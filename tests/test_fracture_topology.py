@@ -391,3 +391,28 @@ def test_matched_faces_after_a_split_are_those_matched_afresh(count, monkeypatch
     fresh = _match_faces(np.asarray(new.tets))
     assert as_set(kept) == as_set(fresh)
     assert len(kept[0]) == len(fresh[0]) < len(_match_faces(np.asarray(old.tets))[0])
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_separation_around_the_changes_equals_the_whole(seed):
+    """A table cut_tets separated is cut again with the separation made around the tets the
+    splits changed; the same tets and node map as the separation of the whole table
+    (the same mesh with a copy of its table, which cut_tets does not know separated)."""
+    from fem_frac.fracture.topology import _is_separated, cut_tets, rebuilt
+
+    rng = np.random.default_rng(seed)
+    mesh = structured_box((5, 4, 4), distortion=0.15, seed=seed)
+    separated = 0  # copies the separations made (beyond the plane splits)
+    for _ in range(6):
+        vertices = rng.choice(mesh.n_points, size=12, replace=False)
+        normals = rng.normal(size=(12, 3))
+        tets, node_map = cut_tets(mesh, vertices, normals)
+        copy = Mesh(mesh.points, np.array(mesh.tets), dict(mesh.boundaries))
+        assert not _is_separated(copy.tets)
+        whole, whole_map = cut_tets(copy, vertices, normals)
+        np.testing.assert_array_equal(tets, whole)
+        np.testing.assert_array_equal(node_map, whole_map)
+        assert _is_separated(tets)
+        separated += node_map.size - cut_tets(copy, vertices, normals, separate=False)[1].size
+        mesh, _ = rebuilt(mesh, tets, node_map)
+    assert separated > 0

@@ -101,6 +101,9 @@ _ADJACENCY: dict[tuple, sp.csr_matrix] = {}
 # tet keeps its row through every later insertion, so the next rebuild finds the groups
 # there instead of in a sort of every face. Dropped with the mesh.
 _BOUNDARY_ROWS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+# The tet tables cut_tets separated (every vertex one face-connected fan), by identity: a
+# later cut of such a table separates only around what it changed. Dropped with the table.
+_SEPARATED: dict[int, weakref.ref] = {}
 
 
 def _face_pairs(tets: np.ndarray):
@@ -246,24 +249,39 @@ def fragments(tets: np.ndarray, links: np.ndarray | None = None) -> tuple[int, n
 # --------------------------------------------------------------------------- splitting
 
 
-def _separate_tets(tets: np.ndarray, n_points: int) -> tuple[np.ndarray, np.ndarray]:
+def _separate_tets(tets: np.ndarray, n_points: int, candidates: np.ndarray | None = None
+                   ) -> tuple[np.ndarray, np.ndarray]:
     """Core of :func:`separate_nonmanifold` on the tet table: ``(new_tets, node_map)``.
 
     Graph over the ``4 m`` corner incidences (tet, local corner): two incidences of the same
     vertex are joined when their tets share a face containing it. Each component is one
     face-connected fan of tets around a vertex. The fan holding the lowest incidence keeps
     the vertex id; the others get copies appended in order of (vertex, lowest incidence).
+    ``candidates``: the only vertices whose fans may be split (every other vertex known to
+    have one fan): the graph is then made over their incidences alone, with the same result.
     """
     tets = np.asarray(tets, dtype=np.int64)
     m = tets.shape[0]
+    flat = tets.reshape(-1)
     r1, r2, l1, l2 = _face_pairs(tets)
     i1 = ((r1 // 4)[:, None] * 4 + l1).ravel()
     i2 = ((r2 // 4)[:, None] * 4 + l2).ravel()
-    graph = sp.coo_matrix((np.ones(i1.size, dtype=np.int8), (i1, i2)), shape=(4 * m, 4 * m))
+    if candidates is None:
+        incidence = np.arange(4 * m, dtype=np.int64)
+    else:
+        wanted = np.zeros(n_points, dtype=bool)
+        wanted[candidates] = True
+        incidence = np.flatnonzero(wanted[flat])
+        joined = wanted[flat[i1]]  # both ends hold the same vertex
+        local = np.full(4 * m, -1, dtype=np.int64)
+        local[incidence] = np.arange(incidence.size)
+        i1, i2 = local[i1[joined]], local[i2[joined]]
+    k = incidence.size
+    graph = sp.coo_matrix((np.ones(i1.size, dtype=np.int8), (i1, i2)), shape=(k, k))
     n_comp, comp = connected_components(graph, directed=False)
     first = np.full(n_comp, 4 * m, dtype=np.int64)
-    np.minimum.at(first, comp, np.arange(4 * m, dtype=np.int64))
-    vert = tets.ravel()[first]  # the vertex of each fan
+    np.minimum.at(first, comp, incidence)
+    vert = flat[first]  # the vertex of each fan
     order = np.lexsort((first, vert))
     primary = np.ones(n_comp, dtype=bool)
     primary[order[1:]] = vert[order[1:]] != vert[order[:-1]]
@@ -271,7 +289,9 @@ def _separate_tets(tets: np.ndarray, n_points: int) -> tuple[np.ndarray, np.ndar
     extra = order[~primary[order]]
     new_id[extra] = n_points + np.arange(extra.size, dtype=np.int64)
     node_map = np.concatenate([np.arange(n_points, dtype=np.int64), vert[extra]])
-    return new_id[comp].reshape(m, 4), node_map
+    out = flat.copy()
+    out[incidence] = new_id[comp]
+    return out.reshape(m, 4), node_map
 
 
 def _split_plane(tets, points, vertex, normal, incidences) -> bool:
@@ -402,14 +422,14 @@ def cut_tets(mesh: Mesh, vertices, normals, separate: bool = True
         raise ValueError("vertex id out of range")
     tets = np.array(mesh.tets, dtype=np.int64)  # a private copy, edited in place below
     n = mesh.n_points
-    # flat positions in ``tets`` grouped by the vertex they hold (CSR-like)
-    by_vertex = np.argsort(tets.reshape(-1), kind="stable")
-    start = np.searchsorted(tets.reshape(-1), np.arange(n + 1), sorter=by_vertex)
+    # the flat positions in ``tets`` of the vertices to split (each vertex's ascending)
+    flat = tets.reshape(-1)
+    held = np.flatnonzero(np.isin(flat, vertices))
     # reference points of the originals and of the copies made so far
     ref = np.concatenate([np.asarray(mesh.points, dtype=float), np.empty((len(vertices), 3))])
     copied = []
     for v, normal in zip(vertices.tolist(), normals, strict=True):
-        inc = by_vertex[start[v] : start[v + 1]]
+        inc = held[mesh.tets.reshape(-1)[held] == v]
         if _split_plane(tets, ref[: n + len(copied)], v, normal, inc):
             ref[n + len(copied)] = ref[v]
             copied.append(v)
@@ -420,11 +440,30 @@ def cut_tets(mesh: Mesh, vertices, normals, separate: bool = True
     if pairs is not None:
         _seed_pairs(tets, pairs)
     if separate:
-        split, (tets, later) = tets, _separate_tets(tets, node_map.size)
+        # on a table already separated, only the corners (old and new ids) of the tets a
+        # split changed can have lost a face between their fans
+        candidates = None
+        if pairs is not None and _is_separated(mesh.tets):
+            changed = np.any(tets != mesh.tets, axis=1)
+            candidates = np.unique(np.concatenate([tets[changed].ravel(),
+                                                   mesh.tets[changed].ravel()]))
+        split, (tets, later) = tets, _separate_tets(tets, node_map.size, candidates)
         node_map = node_map[later]
         if pairs is not None:  # a separation gives no face to another tet
             _seed_pairs(tets, _kept_pairs(pairs, split, tets))
+        _mark_separated(tets)
     return tets, node_map
+
+
+def _mark_separated(tets: np.ndarray) -> None:
+    key = id(tets)
+    _SEPARATED[key] = weakref.ref(tets, lambda _: _SEPARATED.pop(key, None))
+
+
+def _is_separated(tets: np.ndarray) -> bool:
+    """Whether ``tets`` is a table :func:`cut_tets` separated (every vertex one fan)."""
+    ref = _SEPARATED.get(id(tets))
+    return ref is not None and ref() is tets
 
 
 def extract(mesh: Mesh, keep) -> tuple[Mesh, Transfer]:
