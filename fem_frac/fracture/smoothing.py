@@ -237,11 +237,12 @@ PAIR_BLOCK = 2**22
 
 def _pair_table(owner: np.ndarray, tet: np.ndarray, m: int, wanted: np.ndarray,
                 owners: np.ndarray | None = None) -> np.ndarray:
-    """For the pairs ``(owner[k], tet[k])`` (``k < n``, distinct) of rows over ``m`` tets:
-    the pair ``(owners[i], wanted[i, j])`` is, its number ``k``, -1 where none is;
-    ``owners`` defaults to ``owner``. Looked up in a dense table over the rows and the
-    tets the pairs hold, a block of rows at a time (at most :data:`PAIR_BLOCK` entries),
-    where a search would be a binary search per look-up."""
+    """The pairs ``(owner[k], tet[k])`` (``k < n``, distinct, ``owner`` ascending) of rows
+    over ``m`` tets, looked up: for each ``(owners[i], wanted[i, j])`` the number ``k`` of
+    that pair, -1 where it is none (``owners``, ascending, defaults to ``owner``). In a
+    dense table over the rows and the tets the pairs hold, a block of rows at a time (at
+    most about :data:`PAIR_BLOCK` entries), where a search would be a binary search per
+    look-up."""
     owners = owner if owners is None else owners
     held = np.zeros(m, dtype=bool)
     held[tet] = True
@@ -257,7 +258,8 @@ def _pair_table(owner: np.ndarray, tet: np.ndarray, m: int, wanted: np.ndarray,
     for b in range(first.size - 1):
         lo = b * per_block
         # numbered from 1 in a zeroed block (calloc'd, no pass to fill it)
-        block = np.zeros((min(per_block, rows - lo), columns.size + 1), dtype=np.int32)
+        block = np.zeros((min(per_block, rows - lo), columns.size + 1),
+                         dtype=np.int32 if owner.size < 2**31 - 1 else np.int64)
         pairs = slice(first[b], first[b + 1])
         block[owner[pairs] - lo, local[tet[pairs]]] = np.arange(first[b] + 1, first[b + 1] + 1)
         ask = slice(asked[b], asked[b + 1])

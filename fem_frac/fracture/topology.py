@@ -102,7 +102,8 @@ _ADJACENCY: dict[tuple, sp.csr_matrix] = {}
 # there instead of in a sort of every face. Dropped with the mesh.
 _BOUNDARY_ROWS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 # The tet tables cut_tets separated (every vertex one face-connected fan), by identity: a
-# later cut of such a table separates only around what it changed. Dropped with the table.
+# later cut of such a table separates only around what it changed (a mesh's table is never
+# edited in place). Dropped with the table.
 _SEPARATED: dict[int, weakref.ref] = {}
 
 
