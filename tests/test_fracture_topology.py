@@ -398,6 +398,7 @@ def test_separation_around_the_changes_equals_the_whole(seed):
     """A table cut_tets separated is cut again with the separation made around the tets the
     splits changed; the same tets and node map as the separation of the whole table
     (the same mesh with a copy of its table, which cut_tets does not know separated)."""
+    from fem_frac.fracture import topology
     from fem_frac.fracture.topology import _is_separated, cut_tets, rebuilt
 
     rng = np.random.default_rng(seed)
@@ -413,6 +414,9 @@ def test_separation_around_the_changes_equals_the_whole(seed):
         np.testing.assert_array_equal(tets, whole)
         np.testing.assert_array_equal(node_map, whole_map)
         assert _is_separated(tets)
+        # the table's key is kept (no hash of it again), and is its hash
+        assert id(tets) in topology._KEYS
+        assert topology._key(tets) == topology._key(np.array(tets))
         separated += node_map.size - cut_tets(copy, vertices, normals, separate=False)[1].size
         mesh, _ = rebuilt(mesh, tets, node_map)
     assert separated > 0

@@ -105,6 +105,9 @@ _BOUNDARY_ROWS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 # later cut of such a table separates only around what it changed (a mesh's table is never
 # edited in place). Dropped with the table.
 _SEPARATED: dict[int, weakref.ref] = {}
+# The keys (hashes) of the tables cut_tets made, by identity: a batch asks for the matched
+# faces of its tables about ten times, each a hash of the whole table otherwise.
+_KEYS: dict[int, tuple] = {}
 
 
 def _face_pairs(tets: np.ndarray):
@@ -128,9 +131,21 @@ def _pairs_keyed(tets: np.ndarray, key: tuple):
 
 
 def _key(tets: np.ndarray) -> tuple:
-    """The caches' key of a connectivity: its shape and a hash of its contents."""
+    """The caches' key of a connectivity: its shape and a hash of its contents (kept for
+    the tables :func:`cut_tets` made, which no one edits: :data:`_KEYS`)."""
+    known = _KEYS.get(id(tets))
+    if known is not None and known[0]() is tets:
+        return known[1]
     tets = np.ascontiguousarray(tets, dtype=np.int64)
     return tets.shape, hashlib.blake2b(tets.data, digest_size=16).digest()
+
+
+def _remember_key(tets: np.ndarray) -> tuple:
+    """:func:`_key` of ``tets``, kept while ``tets`` lives (by identity: a table cut_tets
+    made and will not edit again, as no one edits a mesh's table in place)."""
+    key, ident = _key(tets), id(tets)
+    _KEYS[ident] = (weakref.ref(tets, lambda _: _KEYS.pop(ident, None)), key)
+    return key
 
 
 def _seed_pairs(tets: np.ndarray, pairs, key: tuple | None = None) -> None:
@@ -439,7 +454,7 @@ def cut_tets(mesh: Mesh, vertices, normals, separate: bool = True
     # the new table's (a sort of every face saved for each of the tables below)
     pairs = _kept_pairs(_face_pairs(mesh.tets), mesh.tets, tets)
     if pairs is not None:
-        _seed_pairs(tets, pairs)
+        _seed_pairs(tets, pairs, _remember_key(tets))
     if separate:
         # on a table already separated, only the corners (old and new ids) of the tets a
         # split changed can have lost a face between their fans
@@ -451,7 +466,7 @@ def cut_tets(mesh: Mesh, vertices, normals, separate: bool = True
         split, (tets, later) = tets, _separate_tets(tets, node_map.size, candidates)
         node_map = node_map[later]
         if pairs is not None:  # a separation gives no face to another tet
-            _seed_pairs(tets, _kept_pairs(pairs, split, tets))
+            _seed_pairs(tets, _kept_pairs(pairs, split, tets), _remember_key(tets))
         _mark_separated(tets)
     return tets, node_map
 
