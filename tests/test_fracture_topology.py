@@ -250,7 +250,7 @@ def test_face_adjacency_counts():
 def test_face_neighbours_are_the_tets_across_each_face():
     """Face j of tet t (opposite corner j) is held by ``face_neighbours[t, j]`` too, that
     tet is face-adjacent to t, and a face on the boundary or on a crack points back to t."""
-    from fem_frac.fracture.topology import face_neighbours
+    from fem_frac.fracture.faces import face_neighbours
 
     old = structured_box((4, 3, 3), distortion=0.1)
     mesh, _ = open_crack(old, [_nearest(old, [0.5, 0.5, 0.5])], [[1.0, 0.2, 0.0]])
@@ -371,8 +371,8 @@ def test_matched_faces_after_a_split_are_those_matched_afresh(count, monkeypatch
     """open_crack keeps the matched faces of its new tables from the old one's (no sort):
     the same pairs and local corners as matching the new table's faces afresh, including
     where the separation gives vertices copies (a bar cut through: count 9)."""
-    from fem_frac.fracture import topology
-    from fem_frac.fracture.topology import _face_pairs, _match_faces
+    from fem_frac.fracture import faces
+    from fem_frac.fracture.faces import _face_pairs, _match_faces
 
     old = structured_box((8, 2, 2), lengths=(2.0, 0.5, 0.5))
     plane = np.nonzero(np.abs(old.points[:, 0] - 1.0) < 1e-12)[0][:count]
@@ -386,7 +386,7 @@ def test_matched_faces_after_a_split_are_those_matched_afresh(count, monkeypatch
                                                       strict=True)}
 
     with monkeypatch.context() as m:  # the new table's pairs are kept, not computed
-        m.setattr(topology, "_match_faces", None)
+        m.setattr(faces, "_match_faces", None)
         kept = _face_pairs(new.tets)
     fresh = _match_faces(np.asarray(new.tets))
     assert as_set(kept) == as_set(fresh)
@@ -398,7 +398,7 @@ def test_separation_around_the_changes_equals_the_whole(seed):
     """A table cut_tets separated is cut again with the separation made around the tets the
     splits changed; the same tets and node map as the separation of the whole table
     (the same mesh with a copy of its table, which cut_tets does not know separated)."""
-    from fem_frac.fracture import topology
+    from fem_frac.fracture import faces
     from fem_frac.fracture.topology import _is_separated, cut_tets, rebuilt
 
     rng = np.random.default_rng(seed)
@@ -415,8 +415,8 @@ def test_separation_around_the_changes_equals_the_whole(seed):
         np.testing.assert_array_equal(node_map, whole_map)
         assert _is_separated(tets)
         # the table's key is kept (no hash of it again), and is its hash
-        assert id(tets) in topology._KEYS
-        assert topology._key(tets) == topology._key(np.array(tets))
+        assert id(tets) in faces._KEYS
+        assert faces._key(tets) == faces._key(np.array(tets))
         separated += node_map.size - cut_tets(copy, vertices, normals, separate=False)[1].size
         mesh, _ = rebuilt(mesh, tets, node_map)
     assert separated > 0

@@ -81,7 +81,7 @@ class Star:
 
 
 def star(tets: np.ndarray, n_points: int) -> Star:
-    from .topology import _face_pairs, face_adjacency
+    from .faces import _face_pairs, face_adjacency
 
     r1, r2, _, _ = _face_pairs(tets)
     held = np.zeros(4 * tets.shape[0], dtype=bool)

@@ -40,7 +40,7 @@ from scipy.sparse.csgraph import connected_components
 
 from ..fem.tensors import largest_value, principal
 from ..mesh.mesh import TET_EDGES, edge_keys, tet_volumes
-from .topology import face_adjacency, face_neighbours
+from .faces import face_adjacency, face_neighbours
 
 METHODS = ("neighbours", "nodal")
 
