@@ -2,21 +2,21 @@
 
 The floor of a step is one back-solve with the cached elastic factorization plus one pass over
 the quadrature points (strain ``B u``, ``law.update``, internal force ``B^T sigma dx``), each
-timed alone. On the same state this times a plain elastic step (``ImplicitStepper.step``) and
-each piece of one batch of the fracture stage, in the order ``FractureStage._insert`` runs
-them: selection (``stage.sites``, the smoothed principal stress computed afresh),
-``stage.open`` (``open_crack``, the debris check, which also labels the new mesh's pieces),
-rebuild (``world.transfer.rediscretize``: space, loads, operators, constrained dofs and
-stepper), caches (``stage._updated``: ``update_operator`` and the other per-mesh caches of
-``_topology``), carry (``world.transfer.carry``), the new body (``body_of``: crack
-measures), support check (``stage.loose``), refactorization (the new stepper's first
-``elastic_factor()``: through the old factorization where fem_frac.solve.bordered keeps it,
-with a fresh factorization timed beside it), the re-solve step, and the field the stage
-publishes for the re-solved state (``stage.principal`` on the new mesh). Each piece: best of
-``--repeats``, each call from cold caches (a 64 MiB buffer written first, as in plastic_step.py);
-selection also right after a batch (as in a run); the whole batch end to end through
-``stage(step, world)``, cold (the first batch of the process, after steps 0 and 1 of the
-run) and warm (best of the repeats).
+timed alone. On the same state this times a plain elastic step (``ImplicitStepper.step``)
+and each piece of one batch of the fracture stage, in the order ``FractureStage._insert``
+runs them: selection (``stage.sites``, the smoothed principal stress computed afresh),
+``stage.open`` (``cut_tets`` and ``rebuilt``, as ``open_crack``; the debris check, which
+also labels the new mesh's pieces), rebuild (``world.transfer.rediscretize``: space, loads,
+operators, constrained dofs and stepper), caches (``stage._updated``: ``update_operator``
+and the other per-mesh caches of ``_topology``), carry (``world.transfer.carry``), the new
+body (``body_of``: crack measures), support check (``stage.loose``), refactorization (the
+new stepper's first ``elastic_factor()``: through the old factorization where
+fem_frac.solve.bordered keeps it, with a fresh factorization timed beside it), the re-solve
+step, and the field the stage publishes for the re-solved state (``stage.principal`` on the
+new mesh). Each piece: best of ``--repeats``, each call from cold caches (a 64 MiB buffer
+written first, as in plastic_step.py); selection also right after a batch (as in a run); the
+whole batch end to end through ``stage(step, world)``, cold (the first batch of the process,
+after steps 0 and 1 of the run) and warm (best of the repeats).
 
 Scene: the brittle bar of tests/test_fracture.py (E = 30 GPa, nu = 0.2, strength 3 MPa),
 0.1 x 0.02 x 0.02, symmetry on xmin/ymin/zmin, displacement on xmax, quasi-static, 2 steps to

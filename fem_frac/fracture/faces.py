@@ -56,19 +56,32 @@ def _pairs_keyed(tets: np.ndarray, key: tuple):
 def _key(tets: np.ndarray) -> tuple:
     """The caches' key of a connectivity: its shape and a hash of its contents (kept for
     the tables :func:`cut_tets` made, which no one edits: :data:`_KEYS`)."""
-    known = _KEYS.get(id(tets))
-    if known is not None and known[0]() is tets:
-        return known[1]
+    known = recalled(_KEYS, tets)
+    if known is not None:
+        return known
     tets = np.ascontiguousarray(tets, dtype=np.int64)
     return tets.shape, hashlib.blake2b(tets.data, digest_size=16).digest()
 
 
 def _remember_key(tets: np.ndarray) -> tuple:
-    """:func:`_key` of ``tets``, kept while ``tets`` lives (by identity: a table cut_tets
-    made and will not edit again, as no one edits a mesh's table in place)."""
-    key, ident = _key(tets), id(tets)
-    _KEYS[ident] = (weakref.ref(tets, lambda _: _KEYS.pop(ident, None)), key)
+    """:func:`_key` of ``tets``, kept while ``tets`` lives (a table cut_tets made and will
+    not edit again, as no one edits a mesh's table in place)."""
+    key = _key(tets)
+    remember(_KEYS, tets, key)
     return key
+
+
+def remember(registry: dict, array: np.ndarray, value) -> None:
+    """Keep ``value`` for ``array`` in ``registry``, by identity, while ``array`` lives
+    (for arrays no one edits in place)."""
+    ident = id(array)
+    registry[ident] = (weakref.ref(array, lambda _: registry.pop(ident, None)), value)
+
+
+def recalled(registry: dict, array: np.ndarray):
+    """The value :func:`remember` kept for ``array`` itself, else ``None``."""
+    known = registry.get(id(array))
+    return known[1] if known is not None and known[0]() is array else None
 
 
 def _seed_pairs(tets: np.ndarray, pairs, key: tuple | None = None) -> None:

@@ -46,6 +46,8 @@ from .faces import (
     _remember_key,
     _seed_pairs,
     face_adjacency,
+    recalled,
+    remember,
 )
 
 
@@ -98,7 +100,7 @@ _BOUNDARY_ROWS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 # The tet tables cut_tets separated (every vertex one face-connected fan), by identity: a
 # later cut of such a table separates only around what it changed (a mesh's table is never
 # edited in place). Dropped with the table.
-_SEPARATED: dict[int, weakref.ref] = {}
+_SEPARATED: dict[int, tuple] = {}
 
 
 def fragments(tets: np.ndarray, links: np.ndarray | None = None) -> tuple[int, np.ndarray]:
@@ -297,11 +299,12 @@ def cut_tets(mesh: Mesh, vertices, normals, separate: bool = True
     # the flat positions in ``tets`` of the vertices to split (each vertex's ascending)
     flat = tets.reshape(-1)
     held = np.flatnonzero(np.isin(flat, vertices))
+    holder = flat[held]  # the vertex each held before the splits
     # reference points of the originals and of the copies made so far
     ref = np.concatenate([np.asarray(mesh.points, dtype=float), np.empty((len(vertices), 3))])
     copied = []
     for v, normal in zip(vertices.tolist(), normals, strict=True):
-        inc = held[mesh.tets.reshape(-1)[held] == v]
+        inc = held[holder == v]
         if _split_plane(tets, ref[: n + len(copied)], v, normal, inc):
             ref[n + len(copied)] = ref[v]
             copied.append(v)
@@ -323,19 +326,13 @@ def cut_tets(mesh: Mesh, vertices, normals, separate: bool = True
         node_map = node_map[later]
         if pairs is not None:  # a separation gives no face to another tet
             _seed_pairs(tets, _kept_pairs(pairs, split, tets), _remember_key(tets))
-        _mark_separated(tets)
+        remember(_SEPARATED, tets, True)
     return tets, node_map
-
-
-def _mark_separated(tets: np.ndarray) -> None:
-    key = id(tets)
-    _SEPARATED[key] = weakref.ref(tets, lambda _: _SEPARATED.pop(key, None))
 
 
 def _is_separated(tets: np.ndarray) -> bool:
     """Whether ``tets`` is a table :func:`cut_tets` separated (every vertex one fan)."""
-    ref = _SEPARATED.get(id(tets))
-    return ref is not None and ref() is tets
+    return recalled(_SEPARATED, tets) is not None
 
 
 def extract(mesh: Mesh, keep) -> tuple[Mesh, Transfer]:

@@ -140,14 +140,6 @@ def _reconnected(recipe: Recipe, space: Space, tangent: np.ndarray, previous: tu
                      np.asarray(old.mesh.tets), np.asarray(space.mesh.tets), changed)
 
 
-def _kept_element_mass(previous: tuple | None, changed: np.ndarray | None
-                       ) -> np.ndarray | None:
-    """The ``previous`` discretization's scalar element masses where the new mesh is its
-    mesh reconnected (``changed``: :func:`_changed`; a crack moves no tet and changes no
-    material), else ``None``."""
-    return None if changed is None else previous[0].ops.element_mass
-
-
 def _seed(previous: tuple | None, space: Space, ops: Operators, constrained: Constrained):
     """``(factorization, tie)`` of the ``previous`` discretization for a stepper on a mesh a
     crack insertion made from it (:mod:`fem_frac.solve.bordered`; static and quasi-static
@@ -238,7 +230,9 @@ def build_operators(recipe: Recipe, space: Space, materials: ElementMaterials,
             if analysis.mass_kind == "lumped":
                 mass = sp.diags(lumped_mass(space, materials.density)).tocsr()
             else:
-                element_mass = _kept_element_mass(previous, changed)
+                # a crack moves no tet and changes no material: the element masses of
+                # the mesh it reconnected are this one's
+                element_mass = None if changed is None else previous[0].ops.element_mass
                 if element_mass is None:
                     element_mass = element_scalar_mass(space, materials.density)
                 mass = consistent_mass(space, materials.density, element_mass)
