@@ -6,6 +6,7 @@ from itertools import combinations
 
 import numpy as np
 import pytest
+import scipy.sparse as sp
 from scipy.sparse.csgraph import connected_components
 
 from fem_frac.errors import SolverError
@@ -453,3 +454,31 @@ def test_update_after_a_crack_equals_a_rebuild(size, block, monkeypatch):
     fresh = smoothing_operator(cut.points, cut.tets, **size)
     for a in ("indptr", "indices", "data"):
         np.testing.assert_array_equal(getattr(again, a), getattr(fresh, a))
+
+
+@pytest.mark.parametrize("rows", [[0], [9], [0, 1, 2], [3, 4, 8, 9], list(range(10))])
+def test_replace_rows_against_dense(rows):
+    """Rows replaced where they start, end, touch each other or are all of them, by fresh
+    rows shorter, longer or empty: the dense result, rows sorted, the other rows as they
+    were (their arrays' entries, to the bit)."""
+    from fem_frac.fracture.smoothing import _replace_rows
+
+    rng = np.random.default_rng(len(rows))
+    old = sp.random(10, 12, density=0.4, format="csr", random_state=rng)
+    old.sort_indices()
+    rows = np.asarray(rows)
+    fresh = sp.random(rows.size, 12, density=0.5, format="csr", random_state=rng)
+    fresh = sp.csr_matrix(fresh.toarray() * (np.arange(rows.size) % 3 != 1)[:, None])
+    expected = old.toarray()
+    expected[rows] = fresh.toarray()
+    out = _replace_rows(old, rows, fresh)
+    np.testing.assert_array_equal(out.toarray(), expected)
+    assert out.has_sorted_indices
+    assert all(np.all(np.diff(out.indices[out.indptr[r]:out.indptr[r + 1]]) > 0)
+               for r in range(10))
+    for r in sorted(set(range(10)) - set(rows.tolist())):
+        a, b = old.indptr[r:r + 2]
+        c, d = out.indptr[r:r + 2]
+        np.testing.assert_array_equal(out.indices[c:d], old.indices[a:b])
+        np.testing.assert_array_equal(out.data[c:d], old.data[a:b])
+    assert _replace_rows(old, np.zeros(0, dtype=np.int64), fresh[:0]) is old

@@ -280,18 +280,35 @@ def _within(c: np.ndarray, split: np.ndarray, radius: np.ndarray) -> np.ndarray:
 def _replace_rows(operator: sp.csr_matrix, rows: np.ndarray, fresh: sp.csr_matrix
                   ) -> sp.csr_matrix:
     """``operator`` with its rows ``rows`` (sorted, unique) replaced by the rows of ``fresh``
-    (``(len(rows), m)``): the two stacked, then their rows gathered in the new order (one
-    copy of each kept row, in C), sorted indices kept; ``operator`` itself where no row
-    is replaced."""
+    (``(len(rows), m)``), sorted indices kept; ``operator`` itself where no row is
+    replaced. One copy of each array: the stretches of the old arrays between the
+    replaced rows and the fresh rows, joined in order."""
     if rows.size == 0:
         return operator
     fresh = sp.csr_matrix(fresh)
     fresh.sort_indices()
     operator.sort_indices()
-    m = operator.shape[0]
-    index = np.arange(m)
-    index[rows] = m + np.arange(rows.size)
-    out = sp.vstack([operator, fresh], format="csr")[index]
+    old_ptr, new_ptr = operator.indptr, fresh.indptr
+    length = np.diff(old_ptr)
+    length[rows] = np.diff(new_ptr)
+    total = int(length.sum())
+    indptr = np.zeros(operator.shape[0] + 1,
+                      dtype=old_ptr.dtype if total <= np.iinfo(old_ptr.dtype).max else np.int64)
+    np.cumsum(length, out=indptr[1:])
+    # the kept stretches of the old arrays, with the fresh rows between them
+    kept = list(zip(np.r_[0, old_ptr[rows + 1]].tolist(),
+                    np.r_[old_ptr[rows], old_ptr[-1]].tolist(), strict=True))
+    replaced = list(zip(new_ptr[:-1].tolist(), new_ptr[1:].tolist(), strict=True))
+
+    def joined(old: np.ndarray, new: np.ndarray) -> np.ndarray:
+        parts = [None] * (len(kept) + len(replaced))
+        parts[0::2] = [old[a:b] for a, b in kept]
+        parts[1::2] = [new[a:b] for a, b in replaced]
+        return np.concatenate(parts)
+
+    out = sp.csr_matrix((joined(operator.data, fresh.data),
+                         joined(operator.indices, fresh.indices), indptr),
+                        shape=operator.shape)
     out.has_sorted_indices = True
     return out
 
