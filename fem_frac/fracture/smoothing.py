@@ -59,6 +59,23 @@ def mean_edge_length(points: np.ndarray, tets: np.ndarray) -> float:
     return float(np.linalg.norm(points[a] - points[b], axis=1).mean())
 
 
+# ones for the patterns of operators (neighbourhoods): one read-only buffer, grown as
+# needed, since a fresh one of a brittle run's size (1.9 million entries) costs more to
+# allocate than to use
+_ONES = np.ones(0)
+
+
+def neighbourhoods(operator: sp.csr_matrix) -> sp.csr_matrix:
+    """The 0/1 pattern of an ``operator`` (its neighbourhoods), sharing its index arrays;
+    read-only."""
+    global _ONES
+    if _ONES.size < operator.nnz:
+        _ONES = np.ones(max(operator.nnz, 2 * _ONES.size))
+        _ONES.flags.writeable = False
+    return sp.csr_matrix((_ONES[:operator.nnz], operator.indices, operator.indptr),
+                         shape=operator.shape)
+
+
 def _pattern(matrix) -> sp.csr_matrix:
     """The 0/1 float CSR pattern of ``matrix`` (duplicates summed, indices sorted)."""
     out = sp.csr_matrix(matrix, dtype=float, copy=True)
@@ -223,8 +240,10 @@ def _reachable_within(old: sp.csr_matrix, neighbours: np.ndarray, rows: np.ndarr
     # the graph is symmetric (a pair's neighbour in its row has it as a neighbour), so its
     # strong components are its connected ones, found without a transpose
     _, label = connected_components(graph, directed=True, connection="strong")
-    home = _pair_table(owner, sub.indices, m, rows[:, None], owners=np.arange(rows.size))
-    kept = label == label[home.ravel()][owner]
+    # each row's own pair: the pairs' keys (row, tet) ascend, the indices being sorted
+    keys = owner * m + sub.indices
+    home = np.searchsorted(keys, np.arange(rows.size, dtype=np.int64) * m + rows)
+    kept = label == label[home][owner]
     indptr = np.zeros(rows.size + 1, dtype=np.int64)
     np.cumsum(np.bincount(owner[kept], minlength=rows.size), out=indptr[1:])
     return sp.csr_matrix((np.ones(np.count_nonzero(kept)), sub.indices[kept], indptr),
@@ -235,15 +254,13 @@ def _reachable_within(old: sp.csr_matrix, neighbours: np.ndarray, rows: np.ndarr
 PAIR_BLOCK = 2**22
 
 
-def _pair_table(owner: np.ndarray, tet: np.ndarray, m: int, wanted: np.ndarray,
-                owners: np.ndarray | None = None) -> np.ndarray:
+def _pair_table(owner: np.ndarray, tet: np.ndarray, m: int, wanted: np.ndarray
+                ) -> np.ndarray:
     """The pairs ``(owner[k], tet[k])`` (``k < n``, distinct, ``owner`` ascending) of rows
-    over ``m`` tets, looked up: for each ``(owners[i], wanted[i, j])`` the number ``k`` of
-    that pair, -1 where it is none (``owners``, ascending, defaults to ``owner``). In a
-    dense table over the rows and the tets the pairs hold, a block of rows at a time (at
-    most about :data:`PAIR_BLOCK` entries), where a search would be a binary search per
-    look-up."""
-    owners = owner if owners is None else owners
+    over ``m`` tets, looked up: for each ``(owner[i], wanted[i, j])`` the number ``k`` of
+    that pair, -1 where it is none. In a dense table over the rows and the tets the pairs
+    hold, a block of rows at a time (at most about :data:`PAIR_BLOCK` entries), where a
+    search would be a binary search per look-up."""
     held = np.zeros(m, dtype=bool)
     held[tet] = True
     local = np.full(m + 1, -1, dtype=np.int64)  # -1 (the last entry) for tets no pair has
@@ -254,7 +271,6 @@ def _pair_table(owner: np.ndarray, tet: np.ndarray, m: int, wanted: np.ndarray,
     rows = int(owner[-1]) + 1 if owner.size else 0
     per_block = max(PAIR_BLOCK // max(columns.size, 1), 1)
     first = np.searchsorted(owner, np.arange(0, rows + per_block, per_block))
-    asked = np.searchsorted(owners, np.arange(0, rows + per_block, per_block))
     for b in range(first.size - 1):
         lo = b * per_block
         # numbered from 1 in a zeroed block (calloc'd, no pass to fill it)
@@ -262,8 +278,7 @@ def _pair_table(owner: np.ndarray, tet: np.ndarray, m: int, wanted: np.ndarray,
                          dtype=np.int32 if owner.size < 2**31 - 1 else np.int64)
         pairs = slice(first[b], first[b + 1])
         block[owner[pairs] - lo, local[tet[pairs]]] = np.arange(first[b] + 1, first[b + 1] + 1)
-        ask = slice(asked[b], asked[b + 1])
-        out[ask] = block[(owners[ask] - lo)[:, None], column[ask]]
+        out[pairs] = block[(owner[pairs] - lo)[:, None], column[pairs]]
     out -= 1
     return out
 

@@ -26,7 +26,6 @@ from collections.abc import Callable
 from dataclasses import dataclass, replace
 
 import numpy as np
-import scipy.sparse as sp
 
 from ..config import schema
 from ..errors import CaseError, SolverError
@@ -43,7 +42,13 @@ from ..writers.fields import cell_average
 from .front import continue_planes, crack_front, front_normals, near_crack
 from .planes import PlaneSites, normal_stress, plane_sites
 from .sites import Sites, select_sites, star, tilt
-from .smoothing import principal_stress, smooth, smoothing_operator, update_operator
+from .smoothing import (
+    neighbourhoods,
+    principal_stress,
+    smooth,
+    smoothing_operator,
+    update_operator,
+)
 from .topology import CRACK, cut_tets, extract, fragments, rebuilt
 
 # A piece that a crack cuts off without support in a static run is dropped as a sliver when
@@ -149,10 +154,8 @@ def _topology(config: schema.Fracture, mesh: Mesh, smoothing, strict: bool,
               volumes: np.ndarray | None = None) -> _Topology:
     """The caches of ``mesh``; ``volumes``: its tets' where known (a crack keeps them)."""
     volumes = tet_volumes(mesh.points, mesh.tets) if volumes is None else volumes
-    # debris: a new piece smaller than the median smoothing neighbourhood (the pattern
-    # shares the operator's index arrays)
-    pattern = sp.csr_matrix((np.ones(smoothing.nnz), smoothing.indices, smoothing.indptr),
-                            shape=smoothing.shape)
+    # debris: a new piece smaller than the median smoothing neighbourhood
+    pattern = neighbourhoods(smoothing)
     on_crack = np.zeros(mesh.n_points, dtype=bool)
     on_crack[np.asarray(mesh.boundaries.get(CRACK, np.zeros((0, 3), int))).ravel()] = True
     front = near = normals = None
