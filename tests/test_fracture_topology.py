@@ -420,3 +420,29 @@ def test_separation_around_the_changes_equals_the_whole(seed):
         separated += node_map.size - cut_tets(copy, vertices, normals, separate=False)[1].size
         mesh, _ = rebuilt(mesh, tets, node_map)
     assert separated > 0
+
+
+def test_check_separated_records_a_conforming_mesh_and_not_a_pinched_one():
+    """A conforming mesh (every vertex one fan) is found separated and kept so: its first
+    cut then separates around the splits, with the whole separation's tets and node map.
+    Two tets that share only a vertex are not (that vertex has two fans), and stay
+    unknown."""
+    from fem_frac.fracture.topology import _is_separated, check_separated, cut_tets
+
+    mesh = structured_box((4, 3, 3), distortion=0.1, seed=3)
+    copy = Mesh(mesh.points, np.array(mesh.tets), dict(mesh.boundaries))
+    assert not _is_separated(mesh.tets)
+    assert check_separated(mesh) and _is_separated(mesh.tets)
+    assert not _is_separated(copy.tets)
+    rng = np.random.default_rng(3)
+    vertices = rng.choice(mesh.n_points, size=10, replace=False)
+    normals = rng.normal(size=(10, 3))
+    tets, node_map = cut_tets(mesh, vertices, normals)
+    whole, whole_map = cut_tets(copy, vertices, normals)
+    np.testing.assert_array_equal(tets, whole)
+    np.testing.assert_array_equal(node_map, whole_map)
+
+    points = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1],
+                       [-1, 0, 0], [0, -1, 0], [0, 0, -1]], dtype=float)
+    pinched = Mesh(points, np.array([[0, 1, 2, 3], [0, 4, 6, 5]]), {})
+    assert not check_separated(pinched) and not _is_separated(pinched.tets)

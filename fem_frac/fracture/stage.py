@@ -49,7 +49,7 @@ from .smoothing import (
     smoothing_operator,
     update_operator,
 )
-from .topology import CRACK, cut_tets, extract, fragments, rebuilt
+from .topology import CRACK, check_separated, cut_tets, extract, fragments, rebuilt
 
 # A piece that a crack cuts off without support in a static run is dropped as a sliver when
 # its volume is below this fraction of the body's (larger ones stop the run).
@@ -303,6 +303,9 @@ class FractureStage:
         with it)."""
         if self._topo is None or self._topo.mesh is not mesh:
             strict = self._topo is None
+            # the cuts of a mesh whose vertices are each one fan separate around their
+            # splits only (fracture.topology.cut_tets)
+            check_separated(mesh)
             self._topo = _topology(self.config, mesh, smoothing_of(self.config, mesh), strict)
         return self._topo
 

@@ -331,8 +331,24 @@ def cut_tets(mesh: Mesh, vertices, normals, separate: bool = True
 
 
 def _is_separated(tets: np.ndarray) -> bool:
-    """Whether ``tets`` is a table :func:`cut_tets` separated (every vertex one fan)."""
+    """Whether ``tets`` is a table :func:`cut_tets` separated or :func:`check_separated`
+    found so (every vertex one fan)."""
     return recalled(_SEPARATED, tets) is not None
+
+
+def check_separated(mesh: Mesh) -> bool:
+    """Whether every vertex of ``mesh`` is one face-connected fan of tets (as a conforming
+    mesh's are, and every table :func:`cut_tets` makes), found once by a whole separation
+    (:func:`separate_nonmanifold`) and then kept for its table, so that the first cut of
+    a mesh that did not come from a cut also separates around its splits only."""
+    tets = mesh.tets
+    if _is_separated(tets):
+        return True
+    _, node_map = _separate_tets(tets, mesh.n_points)
+    if node_map.size != mesh.n_points:
+        return False
+    remember(_SEPARATED, tets, True)
+    return True
 
 
 def extract(mesh: Mesh, keep) -> tuple[Mesh, Transfer]:
