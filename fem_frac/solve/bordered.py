@@ -92,7 +92,7 @@ def bordered_factor(base: Factorization, tie: np.ndarray,
     ctg = np.empty((m, m))  # C^T G: that of the reused columns kept
     ctg[np.ix_(new, new)] = prior.ctg[np.ix_(old, old)] if new.size else 0.0
     if fresh.size:
-        g = root.solve(c[:, fresh].toarray())
+        g = root.solve(c[:, fresh].toarray(order="F"))  # as PARDISO reads it
         columns.append(g)
         block = c.T @ np.ascontiguousarray(g)
         ctg[:, fresh], ctg[fresh, :] = block, block.T
