@@ -204,12 +204,8 @@ def _sequential_impulses(a, b, target, friction, iterations=_ITERATIONS, polish=
         for j, row, pivot, rest, sliding in points:
             lam[j] = max(lam[j] + (rest - row @ lam) / pivot, 0.0)
             if sliding is not None:
-                mu, rows, k, entries, (b1, b2), lam_t, eigen = sliding
-                # b[t] + a[t] @ lam - k @ lam[t], the sums in Python floats (the same
-                # operations as numpy's on two entries, so the same bits)
-                m1, m2 = (rows @ lam).tolist()
-                c1, c2 = (k @ lam_t).tolist()
-                free = ((b1 + m1) - c1, (b2 + m2) - c2)
+                mu, rows, k, entries, b_t, lam_t, eigen = sliding
+                free = b_t + rows @ lam - k @ lam_t
                 lam_t[:] = _friction_impulse(k, free, mu * lam[j], entries, eigen)
         # stop on the contact velocities, not the impulses: with more points than the body
         # has freedoms the impulses are not unique and may wander in that null space
@@ -227,9 +223,9 @@ def _sequential_impulses(a, b, target, friction, iterations=_ITERATIONS, polish=
 def _sweep_terms(a, b, target, friction, lam):
     """What a Gauss-Seidel sweep reads of each point i (row j = 3 i), computed once: ``(j,
     a[j], a[j, j], target[i] - b[j], friction terms or None)``, the friction terms ``(mu,
-    a[t], k = a[t, t], k.tolist(), b[t] as floats, lam[t], a cache for eigh(k))`` with ``t``
-    its two tangential rows. Views of the same arrays and the same operations as indexing
-    them in the sweep, so the same bits."""
+    a[t], k = a[t, t], k.tolist(), b[t], lam[t], a cache for eigh(k))`` with ``t`` its two
+    tangential rows. Views of the same arrays and the same operations as indexing them in
+    the sweep, so the same bits."""
     terms = []
     for i in range(len(target)):
         j = 3 * i
@@ -237,7 +233,7 @@ def _sweep_terms(a, b, target, friction, lam):
         if friction[i] > 0.0:
             t = slice(j + 1, j + 3)
             k = a[t, t]
-            sliding = (friction[i], a[t], k, k.tolist(), b[t].tolist(), lam[t], {})
+            sliding = (friction[i], a[t], k, k.tolist(), b[t], lam[t], {})
         terms.append((j, a[j], a[j, j], target[i] - b[j], sliding))
     return terms
 
