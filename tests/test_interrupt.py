@@ -24,12 +24,19 @@ from fem_frac.config import load_case
 CASE = Path(__file__).resolve().parents[1] / "cases" / "vibrating_beam.yaml"
 
 
+def _default_interrupt() -> None:
+    """In the child before it starts: SIGINT back to its default. A shell that starts the
+    tests in the background has them ignore it, and Python then leaves it ignored."""
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+
 def _start(out: Path) -> subprocess.Popen:
     """The vibrating beam, long enough to be stopped half-way (a frame every step)."""
     return subprocess.Popen(
         [sys.executable, "-m", "fem_frac", "run", str(CASE), "-o", str(out), "-q",
          "--set", "analysis.t_end=1.0", "--set", "analysis.output_every=1"],
-        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+        preexec_fn=_default_interrupt)
 
 
 def _wait_for_steps(out: Path, proc: subprocess.Popen, steps: int = 3,
