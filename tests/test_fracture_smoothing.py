@@ -458,9 +458,9 @@ def test_update_after_a_crack_equals_a_rebuild(size, block, monkeypatch):
 
 @pytest.mark.parametrize("rows", [[0], [9], [0, 1, 2], [3, 4, 8, 9], list(range(10))])
 def test_replace_rows_against_dense(rows):
-    """Rows replaced where they start, end, touch each other or are all of them, by fresh
-    rows shorter, longer or empty: the dense result, rows sorted, the other rows as they
-    were (their arrays' entries, to the bit)."""
+    """Rows replaced where they start, end, touch each other or are all of them, by random
+    fresh rows (every third one empty): the dense result, rows sorted, the other rows as
+    they were (their arrays' entries, to the bit)."""
     from fem_frac.fracture.smoothing import _replace_rows
 
     rng = np.random.default_rng(len(rows))
