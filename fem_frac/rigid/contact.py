@@ -143,7 +143,7 @@ def _jacobian(contacts: Contacts) -> np.ndarray:
     return np.hstack([d, np.cross(arm, d)])
 
 
-def _friction_impulse(k, f, radius, entries=None, eigen=None):
+def _friction_impulse(k, entries, eigen, f, radius):
     """The tangential impulse ``x`` (two numbers) minimizing ``x.k.x / 2 + f.x`` over
     ``|x| <= radius``.
 
@@ -152,13 +152,13 @@ def _friction_impulse(k, f, radius, entries=None, eigen=None):
     rim it slides, ``k x + f = -sigma x``: friction opposes the sliding after the impulse
     (maximum dissipation). A radial clamp of the sticking impulse, or friction along ``-f``,
     misses this minimum when ``k`` is anisotropic and stalls Gauss-Seidel short of sticking.
-    entries: ``k.tolist()``; eigen: a dict that keeps ``eigh(k)`` under the key ``"k"``:
-    Gauss-Seidel calls this with the same ``k`` every sweep.
+    entries: ``k.tolist()``; eigen: a list that keeps ``eigh(k)`` once made (Gauss-Seidel
+    calls this with the same ``k`` every sweep).
     """
     # the sticking impulse, 2 x 2 by hand in Python floats: numpy's per-call overhead is
     # most of a contact step otherwise (the same operations as on numpy scalars, so the
     # same bits)
-    (k00, k01), (k10, k11) = k.tolist() if entries is None else entries
+    (k00, k01), (k10, k11) = entries
     f0, f1 = float(f[0]), float(f[1])
     det = k00 * k11 - k01 * k10
     x0, x1 = (k01 * f1 - k11 * f0) / det, (k10 * f0 - k00 * f1) / det
@@ -168,11 +168,9 @@ def _friction_impulse(k, f, radius, entries=None, eigen=None):
         return 0.0, 0.0
     # secular equation |(k + sigma)^-1 f| = radius; Newton on 1/|x(sigma)| - 1/radius, which
     # is nearly linear in sigma, converges from sigma = 0 monotonically (More & Sorensen 1983)
-    if eigen is None:
-        eigen = {}
-    if "k" not in eigen:
-        eigen["k"] = np.linalg.eigh(k)
-    w, q = eigen["k"]
+    if not eigen:
+        eigen.append(np.linalg.eigh(k))
+    w, q = eigen[0]
     g = q.T @ f
     sigma = 0.0
     for _ in range(50):
@@ -206,7 +204,7 @@ def _sequential_impulses(a, b, target, friction, iterations=_ITERATIONS, polish=
             if sliding is not None:
                 mu, rows, k, entries, b_t, lam_t, eigen = sliding
                 free = b_t + rows @ lam - k @ lam_t
-                lam_t[:] = _friction_impulse(k, free, mu * lam[j], entries, eigen)
+                lam_t[:] = _friction_impulse(k, entries, eigen, free, mu * lam[j])
         # stop on the contact velocities, not the impulses: with more points than the body
         # has freedoms the impulses are not unique and may wander in that null space
         velocities = b + a @ lam
@@ -233,7 +231,7 @@ def _sweep_terms(a, b, target, friction, lam):
         if friction[i] > 0.0:
             t = slice(j + 1, j + 3)
             k = a[t, t]
-            sliding = (friction[i], a[t], k, k.tolist(), b[t], lam[t], {})
+            sliding = (friction[i], a[t], k, k.tolist(), b[t], lam[t], [])
         terms.append((j, a[j], a[j, j], target[i] - b[j], sliding))
     return terms
 
