@@ -107,8 +107,7 @@ def discretize(recipe: Recipe, mesh: Mesh, timer: StageTimer, strict: bool = Tru
     else:
         stepper = ImplicitStepper(problem, law, ops, scheme(recipe.analysis, recipe.dt),
                                   recipe.analysis.equilibrium, constrained)
-        if not stepper.inertia:
-            stepper.seed = _seed(previous, space, ops, constrained)
+        stepper.seed = _seed(previous, space, ops, constrained)
     return Discretization(recipe, mesh, space, problem, materials, law, ops, constrained,
                           stepper, limit)
 
@@ -142,12 +141,12 @@ def _reconnected(recipe: Recipe, space: Space, tangent: np.ndarray, previous: tu
 
 def _seed(previous: tuple | None, space: Space, ops: Operators, constrained: Constrained):
     """``(factorization, tie)`` of the ``previous`` discretization for a stepper on a mesh a
-    crack insertion made from it (:mod:`fem_frac.solve.bordered`; static and quasi-static
-    steppers only: with inertia the round-off it changes grows through impacts into where
-    pieces come to rest, tests/test_fragments.py), ``None`` where it does not apply: no
-    factorization made there yet, cohesive faces (whose secant stiffness changes the
-    iteration matrix anyway), P2 (mid-edge nodes renumbered), or a free dof that copies a
-    constrained one."""
+    crack insertion made from it (:mod:`fem_frac.solve.bordered`: the elements' stiffness
+    and mass matrices, hence those of the Jacobian with inertia, ``K + c M``, the steps'
+    length fixed, are the old mesh's scattered to new dofs), ``None`` where it does not
+    apply: no factorization made there yet, cohesive faces (whose secant stiffness changes
+    the iteration matrix anyway), P2 (mid-edge nodes renumbered), or a free dof that copies
+    a constrained one."""
     if previous is None or ops.interface is not None or space.order != 1:
         return None
     old, node_map = previous
