@@ -482,3 +482,18 @@ def test_replace_rows_against_dense(rows):
         np.testing.assert_array_equal(out.indices[c:d], old.indices[a:b])
         np.testing.assert_array_equal(out.data[c:d], old.data[a:b])
     assert _replace_rows(old, np.zeros(0, dtype=np.int64), fresh[:0]) is old
+
+
+def test_a_brittle_fracture_run_does_not_import_scipy_spatial(tmp_path):
+    """The operator's update finds the split corners by their coordinates' bytes (a copy
+    has its vertex's to the bit), so a run that opens cracks but has no rigid pieces does
+    not pay for scipy.spatial's import (0.13 CPU s, mostly scipy.special)."""
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    case = Path(__file__).parent.parent / "cases" / "bar_tension_break.yaml"
+    code = ("import sys; from fem_frac.app.cli import main; "
+            f"assert main(['run', {str(case)!r}, '-o', {str(tmp_path / 'out')!r}, '-q']) "
+            "== 0; assert 'scipy.spatial' not in sys.modules, 'scipy.spatial imported'")
+    subprocess.run([sys.executable, "-c", code], check=True)
