@@ -150,3 +150,52 @@ def test_build_problem_as_before(name, order):
     dofs = np.array(sorted(fixed))
     np.testing.assert_array_equal(problem.constraints.dofs, dofs)
     np.testing.assert_array_equal(problem.prescribed(1.0), [fixed[d] for d in dofs])
+
+
+def _recracked(mesh: Mesh) -> Mesh:
+    """``mesh`` (:func:`_cracked`) cracked again, through part of the plane y = 1/3."""
+    plane = np.flatnonzero(np.abs(mesh.points[:, 1] - 1 / 3) < 1e-12)[:5]
+    new, _ = open_crack(mesh, plane, np.tile([0.0, 1.0, 0.0], (len(plane), 1)))
+    assert len(new.boundaries["crack"]) > len(mesh.boundaries["crack"])
+    return new
+
+
+@pytest.mark.parametrize("order", [1, 2])
+def test_a_reconnected_mesh_takes_its_selections_at_their_rows(order, monkeypatch):
+    """After a crack insertion, supports and loads built on the faces the old mesh selected
+    (its rows: :attr:`Problem.selections`) equal a fresh build to the bit: the same faces in
+    the same order. The crack group, which the insertion extends, and a box of vertices
+    are selected afresh; without them no face table is made."""
+    before = MESHES["cracked"]
+    after = _recracked(before)
+    vertices = schema.Displacement(type="displacement", vertices={"min": (0, 0, 0),
+                                                                  "max": (0.3, 1, 1)}, y=0.0)
+    conditions = _conditions() + [vertices]
+    old = build_problem(build_space(before, order), conditions, None, None)
+    assert old.selections[-1] is None and old.selections[-2] is None  # vertices, crack
+    assert all(rows is not None for rows in old.selections[:-2])
+    space = build_space(after, order)
+    fresh = build_problem(space, conditions, None, None)
+    carried = build_problem(space, conditions, None, None, carried=old.selections)
+    for name in ("forces", "tractions", "pressures"):
+        np.testing.assert_array_equal(getattr(carried, name), getattr(fresh, name))
+    for name in ("dofs", "values", "curve"):
+        np.testing.assert_array_equal(getattr(carried.constraints, name),
+                                      getattr(fresh.constraints, name))
+    assert carried.reaction_groups.keys() == fresh.reaction_groups.keys()
+    for key, dofs in fresh.reaction_groups.items():
+        np.testing.assert_array_equal(carried.reaction_groups[key], dofs)
+    assert carried.descriptions == fresh.descriptions
+    for a, b in zip(carried.selections, fresh.selections, strict=True):
+        assert (a is None) == (b is None) and (a is None or np.array_equal(a, b))
+
+    plain = conditions[:-2]
+    expected = build_problem(space, plain, None, None)
+
+    def no_table(*args):
+        raise AssertionError("a face table was made")
+
+    monkeypatch.setattr("fem_frac.solve.problem.FaceLookup", no_table)
+    again = build_problem(space, plain, None, None, carried=old.selections[:-2])
+    np.testing.assert_array_equal(again.forces, expected.forces)
+    np.testing.assert_array_equal(again.constraints.dofs, expected.constraints.dofs)

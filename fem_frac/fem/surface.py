@@ -47,11 +47,11 @@ class FaceLookup:
         single = starts[:-1][np.diff(starts) == 1]
         return self.faces[np.sort(self.table.order[single])]
 
-    def holders(self, triples: np.ndarray) -> np.ndarray:
+    def holders(self, triples: np.ndarray) -> tuple[np.ndarray, bool]:
         """Row ``4 tet + local face`` holding each triple ``(k, 3)``: its only tet, or for a
         face two tets share, the one scikit-fem's ``f2t[0]`` names (the lowest local facet
-        number in scikit-fem's order, then the lowest tet). ValueError for a triple that is
-        no face of the mesh."""
+        number in scikit-fem's order, then the lowest tet); and whether every triple has
+        one tet only. ValueError for a triple that is no face of the mesh."""
         wanted = facet_keys(triples, self.n_points)
         first = self.table.rows(wanted)
         if np.any(first < 0):
@@ -63,7 +63,7 @@ class FaceLookup:
             # scikit-fem's local facet j is opposite vertex 3 - j (TET_FACES: opposite i)
             rank = (3 - rows % 4) * len(self.tets) + rows // 4
             first[shared] = rows[np.argmin(rank, axis=0), np.arange(len(shared))]
-        return first
+        return first, len(shared) == 0
 
 
 @dataclass(frozen=True, eq=False)
@@ -80,6 +80,11 @@ class Faces:
     phi: np.ndarray
     dx: np.ndarray
     normals: np.ndarray
+    # the face rows ``4 tet + local face`` of the holding tets, and whether every face is
+    # held by that tet only (an exterior face, not an interface): a mesh a crack reconnected
+    # keeps such rows and their faces (fem_frac.solve.problem.build_problem)
+    rows: np.ndarray | None = None
+    exterior: bool = False
 
     def __len__(self) -> int:
         return self.nodes.shape[0]
@@ -88,15 +93,25 @@ class Faces:
 def faces_of(space: Space, triples: np.ndarray, lookup: FaceLookup | None = None) -> Faces:
     """The triangles ``triples (k, 3)`` of ``space``'s mesh with their nodes and quadrature
     (exact for quadratic data on P2, as the loads' ``FacetBasis`` was)."""
+    mesh = space.mesh
+    lookup = lookup if lookup is not None else FaceLookup(mesh.tets, mesh.n_points)
+    triples = np.asarray(triples, dtype=np.int64).reshape(-1, 3)
+    rows, exterior = lookup.holders(triples)
+    return faces_at(space, rows, exterior)
+
+
+def faces_at(space: Space, rows: np.ndarray, exterior: bool = False) -> Faces:
+    """The faces at ``rows (k,)`` (``4 tet + local face``, oriented out of that tet) of
+    ``space``'s mesh with their nodes and quadrature: :func:`faces_of` once their holders
+    are known. ``exterior``: every face is held by its tet only (recorded)."""
     from skfem import ElementTriP1, ElementTriP2
     from skfem.quadrature import get_quadrature
     from skfem.refdom import RefTri
 
     mesh = space.mesh
-    lookup = lookup if lookup is not None else FaceLookup(mesh.tets, mesh.n_points)
-    triples = np.asarray(triples, dtype=np.int64).reshape(-1, 3)
-    rows = lookup.holders(triples)
-    outward = lookup.faces[rows]
+    rows = np.asarray(rows, dtype=np.int64)
+    outward = np.take_along_axis(np.asarray(mesh.tets, dtype=np.int64)[rows // 4],
+                                 TET_FACES[rows % 4], axis=1)
     corners = np.sort(outward, axis=1)
     nodes = corners if space.order == 1 else np.hstack(
         [corners, _mid_nodes(space, rows // 4, corners)])
@@ -116,7 +131,7 @@ def faces_of(space: Space, triples: np.ndarray, lookup: FaceLookup | None = None
     odd = ((o[:, 0] > o[:, 1]).astype(int) + (o[:, 0] > o[:, 2]) + (o[:, 1] > o[:, 2])) % 2
     sign = np.where(odd == 1, -1.0, 1.0)
     normals = cross * (sign[:, None] / area)[None]
-    return Faces(nodes, phi, area * W[None, :], normals)
+    return Faces(nodes, phi, area * W[None, :], normals, rows, exterior)
 
 
 def _mid_nodes(space: Space, tets: np.ndarray, corners: np.ndarray) -> np.ndarray:

@@ -86,7 +86,7 @@ def discretize(recipe: Recipe, mesh: Mesh, timer: StageTimer, strict: bool = Tru
     ``(discretization, node_map)`` of the mesh a crack insertion made this one from, whose
     operators are then updated rather than rebuilt where that is exact
     (:mod:`fem_frac.fem.reconnect`)."""
-    space, materials, problem = model_on(recipe, mesh, timer, strict)
+    space, materials, problem = model_on(recipe, mesh, timer, strict, previous)
     if strict:
         check_model(recipe, space, materials, problem)
     # per-element properties follow the elements
@@ -171,16 +171,21 @@ def _initial_cohesive_stiffness(ops: Operators) -> sp.csr_matrix | None:
     return interface.matrix(response.secant)
 
 
-def model_on(recipe: Recipe, mesh: Mesh, timer: StageTimer,
-             strict: bool = True) -> tuple[Space, ElementMaterials, Problem]:
-    """Function space, per-element materials, supports and loads on ``mesh``."""
+def model_on(recipe: Recipe, mesh: Mesh, timer: StageTimer, strict: bool = True,
+             previous: tuple | None = None) -> tuple[Space, ElementMaterials, Problem]:
+    """Function space, per-element materials, supports and loads on ``mesh`` (those of a
+    mesh a crack reconnected, ``previous`` as in :func:`discretize`, on the faces the old
+    one selected: :func:`~fem_frac.solve.problem.build_problem`)."""
     with timer("space"):
         space = build_space(mesh, recipe.order)
     with timer("loads"):
         materials = element_materials(recipe.material, list(recipe.regions), mesh)
+        carried = None
+        if previous is not None and _changed(space, previous) is not None:
+            carried = previous[0].problem.selections
         problem = build_problem(space, list(recipe.boundary_conditions), recipe.body_force,
                                 materials.density, recipe.analysis, recipe.load_curves,
-                                strict)
+                                strict, carried)
     return space, materials, problem
 
 

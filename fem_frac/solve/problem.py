@@ -15,7 +15,7 @@ from ..fem import loads, surface
 from ..fem.space import Space
 from ..fem.surface import FaceLookup, Faces
 from ..mesh.mesh import exterior_facets, facet_keys
-from ..mesh.selection import box_facets, in_box, named_facets
+from ..mesh.selection import ALL_BOUNDARY, box_facets, in_box, named_facets
 
 AXES = "xyz"
 # the boundary group of crack faces (fem_frac.fracture.topology.CRACK)
@@ -43,7 +43,14 @@ class Problem:
     boundary name, or ``boundary_conditions[i]``) to the dofs whose reaction forces it sums;
     ``resultants`` maps a label of every load (its boundary name, ``boundary_conditions[i]``
     where that name is taken, ``body_force``) to its curve index and its total force ``(3,)``
-    at curve factor 1 on this space (zero where its faces have left).
+    at curve factor 1 on this space (zero where its faces have left). ``selections``: per
+    condition, the face rows (``4 tet + local face``) it selected where every one is an
+    exterior face and the group is not ``crack``, else ``None``. A mesh a crack reconnected
+    from this one (the same tets in the same order, old ids kept) holds the same exterior
+    faces at the same rows, and its outer faces (those of every box and of ``boundary``)
+    are the same rows in the same order, the crack's new faces going to its own group; so
+    :func:`build_problem` takes them at their rows there, without sorting the mesh's
+    faces: the same faces in the same order as a fresh selection.
     """
 
     space: Space
@@ -56,6 +63,7 @@ class Problem:
     tractions: np.ndarray | None = None  # (n_curves, n_dofs), None: no surface loads
     pressures: np.ndarray | None = None  # (n_curves, n_dofs)
     resultants: dict[str, tuple[int, np.ndarray]] = field(default_factory=dict)
+    selections: tuple = ()
 
     def factors(self, t: float) -> np.ndarray:
         return np.array([c(t) for c in self.curves] or [0.0])
@@ -81,10 +89,32 @@ def outer_facets(mesh, lookup: FaceLookup | None = None) -> np.ndarray:
     return exterior[~np.isin(keys, facet_keys(crack, mesh.n_points))]
 
 
-def _select(space: Space, bc, index: int, exterior: np.ndarray, lookup: FaceLookup,
-            strict: bool = True) -> Faces | np.ndarray | None:
+class _Tables:
+    """The sorted faces of a mesh and its outer faces, made on first use (a problem whose
+    selections all carry over from the mesh a crack reconnected needs neither)."""
+
+    def __init__(self, mesh):
+        self.mesh = mesh
+        self._lookup = self._exterior = None
+
+    @property
+    def lookup(self) -> FaceLookup:
+        if self._lookup is None:
+            self._lookup = FaceLookup(self.mesh.tets, self.mesh.n_points)
+        return self._lookup
+
+    @property
+    def exterior(self) -> np.ndarray:
+        if self._exterior is None:
+            self._exterior = outer_facets(self.mesh, self.lookup)
+        return self._exterior
+
+
+def _select(space: Space, bc, index: int, tables: _Tables, strict: bool = True,
+            rows: np.ndarray | None = None) -> Faces | np.ndarray | None:
     """The faces a condition selects, with their nodes and quadrature, or for a ``vertices``
-    selection the scalar nodes in its box (None: nothing, and not ``strict``)."""
+    selection the scalar nodes in its box (None: nothing, and not ``strict``). ``rows``:
+    the rows of its faces where known, all exterior (:func:`build_problem`)."""
     mesh = space.mesh
     if getattr(bc, "vertices", None) is not None:
         nodes = np.flatnonzero(in_box(mesh, space.node_points, bc.vertices.min,
@@ -95,22 +125,26 @@ def _select(space: Space, bc, index: int, exterior: np.ndarray, lookup: FaceLook
             raise CaseError(("boundary_conditions", index, "vertices"),
                             "the box 'vertices' holds no node of the mesh")
         return nodes
+    if rows is not None:
+        return surface.faces_at(space, rows, exterior=True)
     if bc.boundary is not None:
         try:
-            triples = named_facets(mesh, bc.boundary, exterior)
+            triples = (tables.exterior if bc.boundary == ALL_BOUNDARY
+                       and ALL_BOUNDARY not in mesh.boundaries
+                       else named_facets(mesh, bc.boundary))
         except LookupError as exc:
             raise CaseError(("boundary_conditions", index, "boundary"), str(exc)) from None
         key = ("boundary_conditions", index, "boundary")
         what = f"boundary '{bc.boundary}'"
     else:
-        triples = box_facets(mesh, bc.box.min, bc.box.max, exterior)
+        triples = box_facets(mesh, bc.box.min, bc.box.max, tables.exterior)
         key = ("boundary_conditions", index, "box")
         what = "the box"
     if len(triples) == 0:
         if not strict:
             return None
         raise CaseError(key, f"{what} selects no boundary faces")
-    return surface.faces_of(space, triples, lookup)
+    return surface.faces_of(space, triples, tables.lookup)
 
 
 def _label(bc, index: int) -> str:
@@ -125,6 +159,7 @@ def build_problem(
     analysis=None,
     load_curves: dict | None = None,
     strict: bool = True,
+    carried: tuple | None = None,
 ) -> Problem:
     """Constraints, external forces and reaction groups of the case on ``space``.
 
@@ -132,22 +167,25 @@ def build_problem(
     default curve and the end time of ramps (static when omitted). ``strict``: a selection
     without faces is an error; otherwise (a mesh whose loaded or supported part has left as
     a rigid piece) the condition acts on nothing here (the piece takes the loads on its
-    faces along: fem_frac.rigid.loads).
+    faces along: fem_frac.rigid.loads). ``carried``: the :attr:`Problem.selections` of the
+    mesh a crack reconnected into this one, taken at their rows (:class:`Problem`).
     """
     from .loading import resolve_curves
 
     analysis = analysis if analysis is not None else schema.StaticAnalysis()
     names, curves, curve_of = resolve_curves(_curve_keys(conditions, body_force),
                                              load_curves or {}, analysis)
-    lookup = FaceLookup(space.mesh.tets, space.mesh.n_points)
-    exterior = outer_facets(space.mesh, lookup)
+    tables = _Tables(space.mesh)
     forces = np.zeros((len(names), space.n_dofs))
     surface = {schema.Traction: np.zeros_like(forces), schema.Pressure: np.zeros_like(forces)}
     groups: dict[str, np.ndarray] = {}
     resultants: dict[str, tuple[int, np.ndarray]] = {}
-    described, supports = [], []
+    described, supports, selections = [], [], []
     for i, bc in enumerate(conditions):
-        facets = _select(space, bc, i, exterior, lookup, strict)
+        facets = _select(space, bc, i, tables, strict, carried[i] if carried else None)
+        # (the crack group, which an insertion extends, is selected afresh)
+        selections.append(facets.rows if isinstance(facets, Faces) and facets.exterior
+                          and bc.boundary != CRACK else None)
         label = _label(bc, i)
         timing = f", curve {names[curve_of[i]]}" if hasattr(bc, "curve") else ""
         if isinstance(bc, _LOADS):
@@ -158,11 +196,8 @@ def build_problem(
                 groups[label] = np.zeros(0, dtype=np.int64)
             described.append(f"{bc.type} on {label} (no faces left)")
         elif isinstance(bc, _LOADS):
-            load = _surface_force(space, bc, facets)
-            forces[curve_of[i]] += load
+            load = _add_load(space, bc, facets, int(curve_of[i]), forces, surface)
             resultants[key] = (int(curve_of[i]), load.reshape(-1, 3).sum(axis=0))
-            kind = schema.Pressure if isinstance(bc, schema.Pressure) else schema.Traction
-            surface[kind][curve_of[i]] += load
             described.append(f"{bc.type} on {label} ({len(facets)} faces{timing})")
         else:
             nodes, comps = _supported(space, bc, i, facets)
@@ -171,12 +206,12 @@ def build_problem(
             fixed = "".join(AXES[c] for c in comps)
             described.append(f"{bc.type} ({fixed}) on {label} ({len(nodes)} nodes{timing})")
     if body_force is not None:
-        weight = _gravity(space, body_force, density)
-        forces[curve_of[-1]] += weight
-        resultants["body_force"] = (int(curve_of[-1]), weight.reshape(-1, 3).sum(axis=0))
-        described.append(f"gravity {tuple(body_force.gravity)}, curve {names[curve_of[-1]]}")
+        curve = int(curve_of[-1])
+        forces[curve] += _weight(space, body_force, density, curve, resultants)
+        described.append(f"gravity {tuple(body_force.gravity)}, curve {names[curve]}")
     return Problem(space, _constraints(supports), forces, curves, names, groups, described,
-                   surface[schema.Traction], surface[schema.Pressure], resultants)
+                   surface[schema.Traction], surface[schema.Pressure], resultants,
+                   tuple(selections))
 
 
 # conditions that load the surface (the others prescribe displacements)
@@ -190,6 +225,17 @@ def _curve_keys(conditions: list, body_force) -> list[tuple]:
     if body_force is not None:
         keys.append((("body_force", "curve"), body_force.curve))
     return keys
+
+
+def _add_load(space: Space, bc, facets: Faces, curve: int, forces: np.ndarray,
+              surface: dict) -> np.ndarray:
+    """:func:`_surface_force`, added to ``forces[curve]`` and to its kind's in
+    ``surface``."""
+    load = _surface_force(space, bc, facets)
+    forces[curve] += load
+    kind = schema.Pressure if isinstance(bc, schema.Pressure) else schema.Traction
+    surface[kind][curve] += load
+    return load
 
 
 def _surface_force(space: Space, bc, facets: Faces) -> np.ndarray:
@@ -228,6 +274,13 @@ def _constraints(supports: list[tuple]) -> Constraints:
     # keep the last occurrence of each dof: unique on the reversed arrays
     dofs, first = np.unique(all_dofs[::-1], return_index=True)
     return Constraints(dofs, all_values[::-1][first], all_curves[::-1][first])
+
+
+def _weight(space: Space, body_force, density, curve: int, resultants: dict) -> np.ndarray:
+    """:func:`_gravity`, its resultant booked under ``body_force`` in ``resultants``."""
+    weight = _gravity(space, body_force, density)
+    resultants["body_force"] = (curve, weight.reshape(-1, 3).sum(axis=0))
+    return weight
 
 
 def _gravity(space: Space, body_force, density) -> np.ndarray:
