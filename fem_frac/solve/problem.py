@@ -45,12 +45,13 @@ class Problem:
     where that name is taken, ``body_force``) to its curve index and its total force ``(3,)``
     at curve factor 1 on this space (zero where its faces have left). ``selections``: per
     condition, the face rows (``4 tet + local face``) it selected where every one is an
-    exterior face and the group is not ``crack``, else ``None``. A mesh a crack reconnected
-    from this one (the same tets in the same order, old ids kept) holds the same exterior
-    faces at the same rows, and its outer faces (those of every box and of ``boundary``)
-    are the same rows in the same order, the crack's new faces going to its own group; so
-    :func:`build_problem` takes them at their rows there, without sorting the mesh's
-    faces: the same faces in the same order as a fresh selection.
+    exterior face and the group is not ``crack`` (which an insertion extends), else
+    ``None``. A mesh a crack reconnected from this one (the same tets in the same order,
+    old ids kept) holds the same exterior faces at the same rows, and its outer faces
+    (those of every box and of ``boundary``) are the same rows in the same order, the
+    crack's new faces going to its own group; so :func:`build_problem` takes them at their
+    rows there, without sorting the mesh's faces: the same faces in the same order as a
+    fresh selection.
     """
 
     space: Space
@@ -183,7 +184,6 @@ def build_problem(
     described, supports, selections = [], [], []
     for i, bc in enumerate(conditions):
         facets = _select(space, bc, i, tables, strict, carried[i] if carried else None)
-        # (the crack group, which an insertion extends, is selected afresh)
         selections.append(facets.rows if isinstance(facets, Faces) and facets.exterior
                           and bc.boundary != CRACK else None)
         label = _label(bc, i)
