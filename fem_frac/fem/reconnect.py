@@ -93,3 +93,33 @@ def reconnect(op: StrainOperator, stiffness: sp.csr_matrix, tangent: np.ndarray,
     k.eliminate_zeros()
     k.sort_indices()
     return StrainOperator(space, base, weights, "standard", _base=base), k
+
+
+def reconnect_mass(mass: sp.csr_matrix, element_mass: np.ndarray, old_tets: np.ndarray,
+                   new_tets: np.ndarray, changed: np.ndarray, n_nodes: int) -> sp.csr_matrix:
+    """The consistent mass (vector, ``3 n_nodes`` square) of a P1 mesh a crack reconnected,
+    from ``mass``, the old mesh's: the ``changed`` tets' scalar element masses
+    ``element_mass`` (``(n_tets, 4, 4)``, unchanged by the crack) leave their old vertices
+    for their new ones, ``M_new = M_old - sum_changed M_e (old) + sum_changed M_e (new)``,
+    as :func:`reconnect` does for the stiffness (couplings that cancel dropped below
+    ``DROP`` of the largest diagonal entry). Equal to a fresh
+    :func:`~fem_frac.fem.mass.consistent_mass` to round-off (``tests/test_reconnect.py``)."""
+    from .mass import _times_identity3
+
+    me = element_mass[changed]
+
+    def scatter(tets: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        rows = np.broadcast_to(tets[:, :, None], me.shape).ravel()
+        cols = np.broadcast_to(tets[:, None, :], me.shape).ravel()
+        return rows, cols
+
+    (r1, c1), (r0, c0) = scatter(new_tets[changed]), scatter(old_tets[changed])
+    values = np.concatenate([me.ravel(), -me.ravel()])
+    delta = sp.csr_matrix((values, (np.concatenate([r1, r0]), np.concatenate([c1, c0]))),
+                          shape=(n_nodes, n_nodes))
+    out = (_padded(mass.tocsr(), 3 * n_nodes) + _times_identity3(delta)).tocsr()
+    scale = float(np.abs(out.diagonal()).max()) if n_nodes else 0.0
+    out.data[np.abs(out.data) <= DROP * scale] = 0.0
+    out.eliminate_zeros()
+    out.sort_indices()
+    return out

@@ -139,6 +139,20 @@ def _reconnected(recipe: Recipe, space: Space, tangent: np.ndarray, previous: tu
                      np.asarray(old.mesh.tets), np.asarray(space.mesh.tets), changed)
 
 
+def _reconnected_mass(space: Space, element_mass: np.ndarray, previous: tuple | None,
+                      changed: np.ndarray | None) -> sp.csr_matrix | None:
+    """The consistent mass of ``space`` from the ``previous`` discretization's
+    (:func:`~fem_frac.fem.reconnect.reconnect_mass`: linear tets, a mesh the old one
+    reconnected, ``changed`` as :func:`_changed`), else ``None``."""
+    from ..fem.reconnect import reconnect_mass
+
+    if changed is None or space.order != 1 or previous[0].ops.mass is None:
+        return None
+    old = previous[0]
+    return reconnect_mass(old.ops.mass, element_mass, np.asarray(old.mesh.tets),
+                          np.asarray(space.mesh.tets), changed, space.n_nodes)
+
+
 def _seed(previous: tuple | None, space: Space, ops: Operators, constrained: Constrained):
     """``(factorization, tie)`` of the ``previous`` discretization for a stepper on a mesh a
     crack insertion made from it (:mod:`fem_frac.solve.bordered`: the elements' stiffness
@@ -239,7 +253,9 @@ def build_operators(recipe: Recipe, space: Space, materials: ElementMaterials,
                 element_mass = None if changed is None else previous[0].ops.element_mass
                 if element_mass is None:
                     element_mass = element_scalar_mass(space, materials.density)
-                mass = consistent_mass(space, materials.density, element_mass)
+                mass = _reconnected_mass(space, element_mass, previous, changed)
+                if mass is None:
+                    mass = consistent_mass(space, materials.density, element_mass)
             if analysis.rayleigh is not None:
                 r = analysis.rayleigh
                 damping = (r.mass * mass + r.stiffness * k).tocsr()
