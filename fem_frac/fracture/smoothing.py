@@ -151,14 +151,14 @@ def update_operator(operator: sp.csr_matrix, points: np.ndarray, tets: np.ndarra
     ``operator``: :func:`smoothing_operator` of the mesh before with the same size;
     ``points``, ``tets``: the new mesh (same tets, element ids unchanged); ``split``: the
     positions ``(k, 3)`` of the vertices split, as the mesh holds them (compared to the
-    bit with ``points``, whose copies of them a crack made exactly). Cracks open only along faces at
-    those vertices, so for ``neighbours`` only some rows change. With ``length``: the rows
-    whose neighbourhood held a tet at a split vertex, each now the part of its old
-    neighbourhood still connected to its tet (:func:`_reachable_within`). With ``rings``:
-    the elements within ``rings + 1`` face-steps of a tet at a split vertex, rebuilt. The
-    other rows are kept; the result equals :func:`smoothing_operator` on the new mesh, to
-    the bit. ``nodal`` is rebuilt whole. ``volumes``: the tets' signed volumes where known
-    (a crack leaves them as they were).
+    bit with ``points``, whose copies of them a crack made exactly). Cracks open only
+    along faces at those vertices, so for ``neighbours`` only some rows change. With
+    ``length``: the rows whose neighbourhood held a tet at a split vertex, each now the
+    part of its old neighbourhood still connected to its tet (:func:`_reachable_within`).
+    With ``rings``: the elements within ``rings + 1`` face-steps of a tet at a split
+    vertex, rebuilt. The other rows are kept; the result equals :func:`smoothing_operator`
+    on the new mesh, to the bit. ``nodal`` is rebuilt whole. ``volumes``: the tets' signed
+    volumes where known (a crack leaves them as they were).
     """
     if method != "neighbours":
         return smoothing_operator(points, tets, length=length, rings=rings, method=method)
