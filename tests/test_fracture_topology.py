@@ -446,3 +446,34 @@ def test_check_separated_records_a_conforming_mesh_and_not_a_pinched_one():
                        [-1, 0, 0], [0, -1, 0], [0, 0, -1]], dtype=float)
     pinched = Mesh(points, np.array([[0, 1, 2, 3], [0, 4, 6, 5]]), {})
     assert not check_separated(pinched) and not _is_separated(pinched.tets)
+
+
+def test_debris_retries_keep_the_meshs_matched_faces(monkeypatch):
+    """A batch that sheds debris cuts its mesh again and again (fracture/stage.py, ``open``),
+    each cut keeping two new tables' matched faces; the mesh's own, which every cut and the
+    new mesh's boundary groups ask for, stays kept (least recently asked goes first): its
+    faces are matched once, not again after the retries."""
+    from collections import OrderedDict
+
+    from fem_frac.fracture import faces
+    from fem_frac.fracture.topology import cut_tets, rebuilt
+
+    monkeypatch.setattr(faces, "_PAIRS", OrderedDict())  # nothing kept from other tests
+    monkeypatch.setattr(faces, "_ADJACENCY", {})
+    mesh = structured_box((5, 4, 4), distortion=0.1, seed=2)
+    matched = []
+    inner = faces._match_faces
+
+    def counted(tets):
+        matched.append(tets.shape)
+        return inner(tets)
+
+    monkeypatch.setattr(faces, "_match_faces", counted)
+    faces._face_pairs(mesh.tets)
+    assert len(matched) == 1
+    inside = np.flatnonzero(np.all((mesh.points > 0.1) & (mesh.points < 0.9), axis=1))
+    for k in range(4):  # a first try and three retries, each with other sites
+        tets, node_map = cut_tets(mesh, inside[k: k + 3], np.tile([1.0, 0.2, 0.1], (3, 1)))
+    new, _ = rebuilt(mesh, tets, node_map)
+    assert new.n_points > mesh.n_points
+    assert len(matched) == 1

@@ -19,10 +19,11 @@ import scipy.sparse as sp
 
 from ..mesh.mesh import TET_FACES
 
-# The matched faces of the last few connectivities: a crack-insertion batch asks for those
-# of its new mesh four times (debris check, smoothing update, site lookups), each a sort of
-# every face of every tet; open_crack derives the new tables' from the old one's (the old,
-# the split and the separated table: kept together).
+# The matched faces of the last few connectivities asked for: a crack-insertion batch asks
+# for those of its new mesh four times (debris check, smoothing update, site lookups), each
+# a sort of every face of every tet; open_crack derives the new tables' from the old one's
+# (the old, the split and the separated table: kept together, the old one asked again by
+# each debris retry and by the new mesh's boundary groups).
 _PAIRS: OrderedDict[tuple, tuple] = OrderedDict()
 _PAIRS_KEPT = 4
 # and their face adjacency, asked three times a batch (smoothing update, debris check,
@@ -47,9 +48,11 @@ def _face_pairs(tets: np.ndarray):
 
 
 def _pairs_keyed(tets: np.ndarray, key: tuple):
-    """:func:`_face_pairs` of ``tets`` whose :func:`_key` is ``key``."""
+    """:func:`_face_pairs` of ``tets`` whose :func:`_key` is ``key`` (the least recently
+    asked table goes first: a batch whose debris retries make tables keeps its mesh's)."""
     if key not in _PAIRS:
         _seed_pairs(tets, _match_faces(tets), key)
+    _PAIRS.move_to_end(key)
     return _PAIRS[key]
 
 
