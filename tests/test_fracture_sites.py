@@ -174,3 +174,23 @@ def test_tilt_is_uniform_on_the_cap(angle):
     again = tilt(n[:5], np.radians(angle), np.random.default_rng(9))
     np.testing.assert_array_equal(again, tilt(n[:5], np.radians(angle),
                                               np.random.default_rng(9)))
+
+
+def test_groups_are_the_connected_components():
+    """The union-find of ``splits`` (the tets around one vertex, a few dozen) groups nodes
+    as scipy's connected components do, each group named by its lowest node."""
+    import scipy.sparse as sp
+    from scipy.sparse.csgraph import connected_components
+
+    from fem_frac.fracture.sites import _groups
+
+    rng = np.random.default_rng(3)
+    for n in (1, 2, 7, 30, 60):
+        for edges in (0, n // 2, n, 3 * n):
+            a, b = rng.integers(0, n, edges), rng.integers(0, n, edges)
+            group = np.array(_groups(n, a.tolist(), b.tolist()))
+            graph = sp.coo_matrix((np.ones(edges), (a, b)), shape=(n, n))
+            _, label = connected_components(graph, directed=False)
+            # the same partition, each group named by its lowest node
+            first = {lab: np.flatnonzero(label == lab).min() for lab in np.unique(label)}
+            np.testing.assert_array_equal(group, [first[lab] for lab in label])

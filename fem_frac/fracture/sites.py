@@ -32,7 +32,6 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.sparse as sp
 
-from ..mesh.mesh import match
 from .front import near_marked
 
 # Candidates tested per vectorized block (in decreasing stress): a batch is usually full
@@ -60,7 +59,8 @@ class Sites:
 
 
 def vertex_tets(tets: np.ndarray, n_points: int) -> sp.csr_matrix:
-    """``(n_points, n_tets)`` 0/1 incidence: row ``v`` lists the tets holding vertex ``v``."""
+    """``(n_points, n_tets)`` 0/1 incidence: row ``v`` lists the tets holding vertex ``v``,
+    ascending (canonical CSR: :func:`splits` searches a row)."""
     m = tets.shape[0]
     rows = np.asarray(tets, dtype=np.int64).ravel()
     cols = np.repeat(np.arange(m, dtype=np.int64), 4)
@@ -98,38 +98,42 @@ def splits(points: np.ndarray, tets: np.ndarray, centroids: np.ndarray, s: Star,
     shared with the rest of the mesh. A group without one would come off as a loose piece
     of a few tets: a crack around a corner, not across the body."""
     inc, adj = s.incidence, s.adjacency
-    around = inc.indices[inc.indptr[vertex]:inc.indptr[vertex + 1]]
+    around = inc.indices[inc.indptr[vertex]:inc.indptr[vertex + 1]]  # ascending (canonical)
     side = (centroids[around] - points[vertex]) @ normal < 0.0
     if not side.any() or side.all():
         return False
     # the face-sharing pairs among the tets around the vertex (plain numpy: these graphs
     # have a few dozen nodes, far below what sparse slicing pays off for)
-    degree = adj.indptr[around + 1] - adj.indptr[around]
+    start, degree = adj.indptr[around], adj.indptr[around + 1] - adj.indptr[around]
     row = np.repeat(np.arange(around.size), degree)
-    neighbour = adj.indices[np.concatenate([np.arange(a, b) for a, b in
-                                            zip(adj.indptr[around], adj.indptr[around + 1],
-                                                strict=True)])]
-    position = match(around, neighbour)
-    inside = position >= 0
+    neighbour = adj.indices[np.repeat(start - (np.cumsum(degree) - degree), degree)
+                            + np.arange(int(degree.sum()))]
+    position = np.minimum(np.searchsorted(around, neighbour), around.size - 1)
+    inside = around[position] == neighbour
     i, j = row[inside], position[inside]
     same = side[i] == side[j]
-    i, j = i[same], j[same]
-    # connected groups by label propagation (converges in at most around.size sweeps)
-    group = np.arange(around.size)
-    while True:
-        low = np.minimum(group[i], group[j])
-        new = group.copy()
-        np.minimum.at(new, i, low)
-        np.minimum.at(new, j, low)
-        new = new[new]
-        if np.array_equal(new, group):
-            break
-        group = new
+    group = _groups(around.size, i[same].tolist(), j[same].tolist())
     local = np.argmax(tets[around] == vertex, axis=1)
-    anchored = np.zeros(around.size, dtype=bool)
-    anchored[group[s.held[around, local]]] = True
-    roots = np.unique(group)
-    return bool(anchored[roots].all())
+    anchored = {group[k] for k in np.flatnonzero(s.held[around, local]).tolist()}
+    return set(group) <= anchored
+
+
+def _groups(n: int, a: list[int], b: list[int]) -> list[int]:
+    """The connected group (its lowest node) of each of ``n`` nodes joined by the edges
+    ``a[k] - b[k]``: union-find in Python, for the few dozen tets around a vertex."""
+    parent = list(range(n))
+
+    def root(k: int) -> int:
+        while parent[k] != k:
+            parent[k] = parent[parent[k]]
+            k = parent[k]
+        return k
+
+    for x, y in zip(a, b, strict=True):
+        rx, ry = root(x), root(y)
+        if rx != ry:
+            parent[max(rx, ry)] = min(rx, ry)
+    return [root(k) for k in range(n)]
 
 
 def tilt(normals: np.ndarray, angle: float, rng: np.random.Generator) -> np.ndarray:
