@@ -487,7 +487,8 @@ def test_replace_rows_against_dense(rows):
 def test_a_brittle_fracture_run_does_not_import_scipy_spatial(tmp_path):
     """The operator's update finds the split corners by their coordinates' bytes (a copy
     has its vertex's to the bit), so a run that opens cracks but has no rigid pieces does
-    not pay for scipy.spatial's import (0.13 CPU s, mostly scipy.special)."""
+    not pay for scipy.spatial's import (0.13 s under ``python -X importtime``, mostly
+    scipy.special)."""
     import subprocess
     import sys
     from pathlib import Path

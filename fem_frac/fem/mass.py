@@ -53,12 +53,17 @@ def consistent_mass(space: Space, density: float,
     ``element_mass``: :func:`element_scalar_mass` where known (tets with the geometry and
     density of ``space``'s, such as those of a mesh a crack reconnected)."""
     me = element_scalar_mass(space, density) if element_mass is None else element_mass
-    dofs = _scalar_element_dofs(space)
-    k = dofs.shape[1]
-    rows = np.broadcast_to(dofs[:, :, None], (dofs.shape[0], k, k)).ravel()
-    cols = np.broadcast_to(dofs[:, None, :], (dofs.shape[0], k, k)).ravel()
+    rows, cols = element_pairs(_scalar_element_dofs(space))
     scalar = sp.coo_matrix((me.ravel(), (rows, cols)), shape=(space.n_nodes, space.n_nodes))
     return _times_identity3(scalar.tocsr())
+
+
+def element_pairs(dofs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``(rows, cols)``, flat: the global pair of every entry of the element matrices
+    ``(n, k, k)`` on the element dofs ``dofs (n, k)``, in their C order."""
+    shape = (dofs.shape[0], dofs.shape[1], dofs.shape[1])
+    return (np.broadcast_to(dofs[:, :, None], shape).ravel(),
+            np.broadcast_to(dofs[:, None, :], shape).ravel())
 
 
 def _times_identity3(scalar: sp.csr_matrix) -> sp.csr_matrix:

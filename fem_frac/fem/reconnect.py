@@ -104,16 +104,10 @@ def reconnect_mass(mass: sp.csr_matrix, element_mass: np.ndarray, old_tets: np.n
     as :func:`reconnect` does for the stiffness (couplings that cancel dropped below
     ``DROP`` of the largest diagonal entry). Equal to a fresh
     :func:`~fem_frac.fem.mass.consistent_mass` to round-off (``tests/test_reconnect.py``)."""
-    from .mass import _times_identity3
+    from .mass import _times_identity3, element_pairs
 
     me = element_mass[changed]
-
-    def scatter(tets: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        rows = np.broadcast_to(tets[:, :, None], me.shape).ravel()
-        cols = np.broadcast_to(tets[:, None, :], me.shape).ravel()
-        return rows, cols
-
-    (r1, c1), (r0, c0) = scatter(new_tets[changed]), scatter(old_tets[changed])
+    (r1, c1), (r0, c0) = element_pairs(new_tets[changed]), element_pairs(old_tets[changed])
     values = np.concatenate([me.ravel(), -me.ravel()])
     delta = sp.csr_matrix((values, (np.concatenate([r1, r0]), np.concatenate([c1, c0]))),
                           shape=(n_nodes, n_nodes))

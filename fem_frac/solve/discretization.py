@@ -86,12 +86,14 @@ def discretize(recipe: Recipe, mesh: Mesh, timer: StageTimer, strict: bool = Tru
     ``(discretization, node_map)`` of the mesh a crack insertion made this one from, whose
     operators are then updated rather than rebuilt where that is exact
     (:mod:`fem_frac.fem.reconnect`)."""
-    space, materials, problem = model_on(recipe, mesh, timer, strict, previous)
+    changed = _changed(mesh, previous)
+    carried = None if changed is None else previous[0].problem.selections
+    space, materials, problem = model_on(recipe, mesh, timer, strict, carried)
     if strict:
         check_model(recipe, space, materials, problem)
     # per-element properties follow the elements
     law = material_law(materials, recipe.plasticity)
-    ops = build_operators(recipe, space, materials, law, timer, previous)
+    ops = build_operators(recipe, space, materials, law, timer, previous, changed)
     constrained = Constrained(problem, recipe.analysis.linear_solver,
                               recipe.analysis.petsc)
     limit = None
@@ -112,8 +114,8 @@ def discretize(recipe: Recipe, mesh: Mesh, timer: StageTimer, strict: bool = Tru
                           stepper, limit)
 
 
-def _changed(space: Space, previous: tuple | None) -> np.ndarray | None:
-    """The tets a crack insertion changed, where ``space``'s mesh is the ``previous``
+def _changed(mesh: Mesh, previous: tuple | None) -> np.ndarray | None:
+    """The tets a crack insertion changed, where ``mesh`` is the ``previous``
     discretization's reconnected (:func:`~fem_frac.fem.reconnect.changed_tets`: the same
     tets, at the same places, in the same order), else ``None``."""
     from ..fem.reconnect import changed_tets
@@ -121,7 +123,7 @@ def _changed(space: Space, previous: tuple | None) -> np.ndarray | None:
     if previous is None:
         return None
     old, node_map = previous
-    return changed_tets(old.mesh.tets, space.mesh.tets, node_map)
+    return changed_tets(old.mesh.tets, mesh.tets, node_map)
 
 
 def _reconnected(recipe: Recipe, space: Space, tangent: np.ndarray, previous: tuple | None,
@@ -146,7 +148,7 @@ def _reconnected_mass(space: Space, element_mass: np.ndarray, previous: tuple | 
     reconnected, ``changed`` as :func:`_changed`), else ``None``."""
     from ..fem.reconnect import reconnect_mass
 
-    if changed is None or space.order != 1 or previous[0].ops.mass is None:
+    if changed is None or space.order != 1:
         return None
     old = previous[0]
     return reconnect_mass(old.ops.mass, element_mass, np.asarray(old.mesh.tets),
@@ -186,17 +188,14 @@ def _initial_cohesive_stiffness(ops: Operators) -> sp.csr_matrix | None:
 
 
 def model_on(recipe: Recipe, mesh: Mesh, timer: StageTimer, strict: bool = True,
-             previous: tuple | None = None) -> tuple[Space, ElementMaterials, Problem]:
-    """Function space, per-element materials, supports and loads on ``mesh`` (those of a
-    mesh a crack reconnected, ``previous`` as in :func:`discretize`, on the faces the old
-    one selected: :func:`~fem_frac.solve.problem.build_problem`)."""
+             carried: tuple | None = None) -> tuple[Space, ElementMaterials, Problem]:
+    """Function space, per-element materials, supports and loads on ``mesh`` (``carried``:
+    the selections of the mesh a crack reconnected into this one, whose faces are taken
+    at their rows: :func:`~fem_frac.solve.problem.build_problem`)."""
     with timer("space"):
         space = build_space(mesh, recipe.order)
     with timer("loads"):
         materials = element_materials(recipe.material, list(recipe.regions), mesh)
-        carried = None
-        if previous is not None and _changed(space, previous) is not None:
-            carried = previous[0].problem.selections
         problem = build_problem(space, list(recipe.boundary_conditions), recipe.body_force,
                                 materials.density, recipe.analysis, recipe.load_curves,
                                 strict, carried)
@@ -221,18 +220,18 @@ def check_model(recipe: Recipe, space: Space, materials: ElementMaterials,
 
 
 def build_operators(recipe: Recipe, space: Space, materials: ElementMaterials,
-                    law: MaterialLaw, timer: StageTimer,
-                    previous: tuple | None = None) -> Operators:
+                    law: MaterialLaw, timer: StageTimer, previous: tuple | None = None,
+                    changed: np.ndarray | None = None) -> Operators:
     """Strain operator and elastic stiffness (updated from ``previous``, see
-    :func:`discretize`, where that is exact); mass and damping when the analysis is
-    dynamic; the cohesive crack faces when cracks carry a fracture energy."""
+    :func:`discretize`, where that is exact: ``changed``, the tets the insertion changed,
+    :func:`_changed`); mass and damping when the analysis is dynamic; the cohesive crack
+    faces when cracks carry a fracture energy."""
     from ..fem.operators import strain_operator
 
     with timer("assemble"):
         d = law.elastic_tangent
         if d.ndim == 4:  # per element: one value for every quadrature point
             d = np.ascontiguousarray(np.broadcast_to(d, (6, 6) + space.basis.dx.shape))
-        changed = _changed(space, previous)
         reused = _reconnected(recipe, space, d, previous, changed)
         if reused is not None:
             op, k = reused

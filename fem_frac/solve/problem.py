@@ -6,6 +6,7 @@ Errors name the case key they come from (``boundary_conditions[i].boundary``).
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from functools import cached_property
 
 import numpy as np
 
@@ -96,19 +97,14 @@ class _Tables:
 
     def __init__(self, mesh):
         self.mesh = mesh
-        self._lookup = self._exterior = None
 
-    @property
+    @cached_property
     def lookup(self) -> FaceLookup:
-        if self._lookup is None:
-            self._lookup = FaceLookup(self.mesh.tets, self.mesh.n_points)
-        return self._lookup
+        return FaceLookup(self.mesh.tets, self.mesh.n_points)
 
-    @property
+    @cached_property
     def exterior(self) -> np.ndarray:
-        if self._exterior is None:
-            self._exterior = outer_facets(self.mesh, self.lookup)
-        return self._exterior
+        return outer_facets(self.mesh, self.lookup)
 
 
 def _select(space: Space, bc, index: int, tables: _Tables, strict: bool = True,
