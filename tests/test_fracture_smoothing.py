@@ -143,6 +143,14 @@ def test_length_follows_face_paths():
     c = c[keep]
     length = 1.9
     s = smoothing_operator(box.points, tets, length=length)
+    want, d = _ball_components(tets, c, length)
+    np.testing.assert_array_equal(s.toarray() > 0, want)
+    assert np.any(want != (d <= length))  # some in-ball tets are really cut off
+
+
+def _ball_components(tets, c, length):
+    """``(pattern (m, m), distances)``: for each tet, the tets of the face-connected part
+    of its ball (centroids within ``length``) that holds it, by a search per element."""
     d = np.linalg.norm(c[:, None] - c[None], axis=2)
     adj = face_adjacency(tets)
     want = np.zeros_like(d, dtype=bool)
@@ -150,8 +158,24 @@ def test_length_follows_face_paths():
         ball = np.nonzero(d[i] <= length)[0]
         _, comp = connected_components(adj[ball][:, ball], directed=False)
         want[i, ball[comp == comp[ball == i]]] = True
+    return want, d
+
+
+@pytest.mark.parametrize("length", [0.2, 0.35, 0.6])
+def test_length_neighbourhoods_on_a_cracked_distorted_box(length):
+    """The ring-by-ring search (only the last two rings looked up) against a search per
+    element, on a distorted box with a crack through part of it (paths around its front)."""
+    box = structured_box((5, 4, 3), distortion=0.2, seed=3)
+    c0 = centroids(box.points, box.tets)
+    vertices = np.flatnonzero((np.abs(box.points[:, 0] - 0.4) < 0.11)
+                              & (box.points[:, 1] < 0.5))
+    new, _ = open_crack(box, vertices, np.tile([1.0, 0.0, 0.0], (vertices.size, 1)))
+    c = centroids(new.points, new.tets)
+    np.testing.assert_array_equal(c, c0)  # a crack moves no tet
+    s = smoothing_operator(new.points, new.tets, length=length)
+    want, d = _ball_components(new.tets, c, length)
     np.testing.assert_array_equal(s.toarray() > 0, want)
-    assert np.any(want != (d <= length))  # some in-ball tets are really cut off
+    assert np.any(want != (d <= length))  # the crack cuts some neighbourhoods
 
 
 @pytest.mark.parametrize(

@@ -104,31 +104,43 @@ def _face_steps(tets: np.ndarray) -> sp.csr_matrix:
     return _pattern(face_adjacency(tets) + sp.identity(tets.shape[0], format="csr"))
 
 
-def _length_neighbourhoods(step: sp.csr_matrix, c: np.ndarray, length: float,
-                           rows: np.ndarray | None = None) -> sp.csr_matrix:
-    """Pattern of pairs ``(i, j)`` joined by a path of ``step`` (which holds the diagonal)
-    whose every element has its centroid within ``length`` of ``c[i]``; only the rows
-    ``rows`` (all when ``None``), as a ``(len(rows), m)`` matrix.
+def _length_neighbourhoods(step: sp.csr_matrix, c: np.ndarray, length: float
+                           ) -> sp.csr_matrix:
+    """Pattern ``(m, m)`` of pairs ``(i, j)`` joined by a path of ``step`` (0/1, holding the
+    diagonal) whose every element has its centroid within ``length`` of ``c[i]``.
 
-    Grown ring by ring: extend the pairs added last ring by one step, keep the candidates
-    not held yet and within ``length``, stop when a ring adds nothing. Cost grows with the
-    number of pairs (about the number of tets in a ball of radius ``length`` per row).
+    A breadth-first search from every tet at once, ring by ring: a ring is the pairs at
+    that many steps in the row's graph (the tets within ``length``), and a neighbour of ring
+    ``k`` lies in ring ``k - 1``, ``k`` or ``k + 1``, so only the last two rings are looked
+    up to find the new pairs, not all held so far. Cost grows with the number of pairs
+    (about the number of tets in a ball of radius ``length`` per row).
     """
     m = c.shape[0]
-    rows = np.arange(m) if rows is None else np.asarray(rows, dtype=np.int64)
-    k = rows.size
-    reach = sp.csr_matrix((np.ones(k), (np.arange(k), rows)), shape=(k, m))
-    front = reach
+    cx, cy, cz = (np.ascontiguousarray(c[:, i]) for i in range(3))
+    own = np.arange(m, dtype=np.int64)
+    front = sp.csr_matrix((np.ones(m), own, np.arange(m + 1)), shape=(m, m))
+    before = sp.csr_matrix((m, m))
+    # an entry of front @ step counts the paths into it, at most a column of step's entries:
+    # the last two rings' entries, weighted by more, come out negative
+    mark = float(np.diff(step.indptr).max()) + 1.0
+    rows, cols = [own], [own]
     while front.nnz:
-        cand = _pattern(front @ step)
-        cand = (cand - cand.multiply(reach)).tocsr()
-        cand.eliminate_zeros()
-        cand = cand.tocoo()
-        near = np.linalg.norm(c[rows[cand.row]] - c[cand.col], axis=1) <= length
-        front = sp.csr_matrix(
-            (np.ones(np.count_nonzero(near)), (cand.row[near], cand.col[near])), shape=(k, m)
-        )
-        reach = sp.csr_matrix(reach + front)
+        cand = front @ step - mark * (front + before)
+        r = np.repeat(own, np.diff(cand.indptr))
+        new = cand.data > 0.0
+        r, t = r[new], cand.indices[new]
+        # |c[i] - c[j]| as numpy.linalg.norm sums it, to the bit
+        dx, dy, dz = cx[r] - cx[t], cy[r] - cy[t], cz[r] - cz[t]
+        near = np.sqrt((dx * dx + dy * dy) + dz * dz) <= length
+        r, t = r[near], t[near]
+        indptr = np.zeros(m + 1, dtype=np.int64)
+        np.cumsum(np.bincount(r, minlength=m), out=indptr[1:])  # r ascends
+        before, front = front, sp.csr_matrix((np.ones(r.size), t, indptr), shape=(m, m))
+        rows.append(r)
+        cols.append(t)
+    rows, cols = np.concatenate(rows), np.concatenate(cols)
+    reach = sp.csr_matrix((np.ones(rows.size), (rows, cols)), shape=(m, m))
+    reach.sort_indices()
     return reach
 
 

@@ -61,13 +61,15 @@ SINGULAR = 1e-12
 REUSE = 1e-13
 
 
-def bordered_factor(base: Factorization, tie: np.ndarray,
-                    matrix: sp.csr_matrix) -> Factorization | None:
+def bordered_factor(base: Factorization, tie: np.ndarray, matrix: sp.csr_matrix,
+                    free: np.ndarray | None = None) -> Factorization | None:
     """A factorization of ``matrix`` (the new free-dof Jacobian, ``(n', n')``) through
     ``base`` (a :class:`Factorization` of the base mesh's, or a bordered one, whose base is
     then used with the ties composed and whose columns of ``G`` are reused where ``C``'s
     did not change) and ``tie (n',)``: the free dof of ``base``'s matrix each new free dof
-    copies. ``None`` where the module's policy says to refactorize."""
+    copies. ``None`` where the module's policy says to refactorize. ``free``: ``matrix``
+    is the whole Jacobian and these (ascending) its free dofs; only the copies' columns
+    are taken, not the free-dof matrix (the same entries)."""
     local = np.asarray(tie, dtype=np.int64)
     root, prior, tie = base, None, local
     if hasattr(base, "tie"):  # compose with the meshes between
@@ -80,12 +82,11 @@ def bordered_factor(base: Factorization, tie: np.ndarray,
     m = copies.size
     if m > copies_limit(root):
         return None
-    a = sp.csr_matrix(matrix)
+    columns, d = _copy_columns(sp.csr_matrix(matrix), copies, free)
     tied = sp.csr_matrix((np.ones(tie.size), (tie, np.arange(tie.size))),
                          shape=(n, tie.size))  # E^T
-    c = sp.csc_matrix(tied @ a[:, copies])  # (n, m), a few entries a column
+    c = sp.csc_matrix(tied @ columns)  # (n, m), a few entries a column
     c.sort_indices()
-    d = a[copies][:, copies].toarray()
     new, old = _unchanged_columns(prior, local[copies], c)
     fresh = np.setdiff1d(np.arange(m), new)
     columns, slot = _Columns.for_factor(prior, n, new, old, fresh, 2 * m + 16)
@@ -111,6 +112,17 @@ def bordered_factor(base: Factorization, tie: np.ndarray,
     out.live = live
     out.solved = int(fresh.size)  # columns of G back-solved here (the others reused)
     return out
+
+
+def _copy_columns(a: sp.csr_matrix, copies: np.ndarray, free: np.ndarray | None
+                  ) -> tuple[sp.csr_matrix, np.ndarray]:
+    """``(A'[:, copies] (n', m), A'[copies][:, copies] dense)`` of the free-dof matrix
+    ``A'``: ``a`` itself, or ``a[free][:, free]`` where ``free`` is given, whose columns
+    ``free[copies]`` are taken first (the same entries in the same order)."""
+    if free is None:
+        return a[:, copies], a[copies][:, copies].toarray()
+    cols = np.asarray(free)[copies]
+    return a[:, cols][free], a[cols][:, cols].toarray()
 
 
 def _solve(root, tied, tie, copies, c, cho, g, slot):

@@ -143,7 +143,7 @@ class ImplicitStepper:
 
             (base, tie), self.seed = self.seed, None
             free = self.constrained.free
-            self.factor = bordered_factor(base, tie, self.elastic_jacobian[free][:, free])
+            self.factor = bordered_factor(base, tie, self.elastic_jacobian, free=free)
         if self.factor is None:
             self.factor = self.constrained.factorize(self.elastic_jacobian)
         return self.factor
