@@ -176,6 +176,21 @@ def test_tilt_is_uniform_on_the_cap(angle):
                                               np.random.default_rng(9)))
 
 
+def test_tilting_some_rows_tilts_them_as_tilting_all_does():
+    """``only``: the rows asked for get the bits a tilt of every row gives them (the draws
+    are made for every row), the others come back as given, NaN included."""
+    rng = np.random.default_rng(4)
+    n = rng.normal(size=(50, 3))
+    n[::7] = np.nan  # directions nobody reads (fem_frac.fracture.smoothing)
+    only = rng.random(50) < 0.4
+    only[::7] = False
+    every = tilt(n, np.radians(10.0), np.random.default_rng(5))
+    some = tilt(n, np.radians(10.0), np.random.default_rng(5), only=only)
+    np.testing.assert_array_equal(some[only], every[only])
+    np.testing.assert_array_equal(some[~only], n[~only])
+    assert not np.allclose(some[only], n[only] / np.linalg.norm(n[only], axis=1)[:, None])
+
+
 def test_groups_are_the_connected_components():
     """The union-find of ``splits`` (the tets around one vertex, a few dozen) groups nodes
     as scipy's connected components do, each group named by its lowest node."""

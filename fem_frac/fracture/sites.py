@@ -136,13 +136,24 @@ def _groups(n: int, a: list[int], b: list[int]) -> list[int]:
     return [root(k) for k in range(n)]
 
 
-def tilt(normals: np.ndarray, angle: float, rng: np.random.Generator) -> np.ndarray:
+def tilt(normals: np.ndarray, angle: float, rng: np.random.Generator,
+         only: np.ndarray | None = None) -> np.ndarray:
     """Unit normals tilted uniformly on the spherical cap of half-angle ``angle`` (radians)
-    around each of ``normals (k, 3)``."""
+    around each of ``normals (k, 3)``. ``only (k,)`` bool: tilt those rows alone and return
+    the others as given; the draws are the same (two per row, for every row), so a row's
+    tilt does not depend on which others are tilted."""
     k = normals.shape[0]
-    n = normals / np.linalg.norm(normals, axis=1, keepdims=True)
     cos = 1.0 - rng.random(k) * (1.0 - np.cos(angle))  # uniform on the cap's area
     phi = 2.0 * np.pi * rng.random(k)
+    if only is not None:
+        out = np.array(normals, dtype=float)
+        out[only] = _tilted(out[only], cos[only], phi[only])
+        return out
+    return _tilted(normals, cos, phi)
+
+
+def _tilted(normals: np.ndarray, cos: np.ndarray, phi: np.ndarray) -> np.ndarray:
+    n = normals / np.linalg.norm(normals, axis=1, keepdims=True)
     # an orthonormal pair perpendicular to n: cross with the axis least aligned with it
     axis = np.eye(3)[np.argmin(np.abs(n), axis=1)]
     e1 = np.cross(n, axis)

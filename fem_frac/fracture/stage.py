@@ -359,7 +359,9 @@ class FractureStage:
         p = self.config.perturbation
         if p is not None:
             rng = np.random.default_rng([p.seed, n, batch])
-            direction = tilt(direction, np.radians(p.angle), rng)
+            # only the candidates' directions are read (select_sites)
+            direction = tilt(direction, np.radians(p.angle), rng,
+                             only=sigma1 > self.config.tensile_strength)
         return select_sites(mesh.points, mesh.tets, sigma1, direction,
                             self.config.tensile_strength, topo.smoothing, topo.on_crack,
                             topo.protected | topo.refused, limit, topo.star,
