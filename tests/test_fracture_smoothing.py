@@ -396,6 +396,36 @@ def test_largest_principal_closed_form():
     assert error.max() > 1e3 * np.finfo(float).eps  # not a few ulps there
 
 
+def test_largest_values_within_ulps_of_lapack_at_any_gap():
+    """The output's largest principal stress (fem.tensors.largest_values) against eigvalsh,
+    with the top two values apart by 1e-16 to 1 of the size: LAPACK's bits where they
+    nearly coincide (1 + r < NEAR_DOUBLE), elsewhere the closed form, whose error is
+    ``2 p sin(phi) dphi`` with ``dphi = dr / (3 sqrt(1 - r^2))``, ``dr`` a few tens of
+    ulps: at most ~100 ulps of the size there. Without the fallback the error reaches
+    ~sqrt(eps) of the size."""
+    from fem_frac.fem.tensors import largest_value, largest_values
+
+    rng = np.random.default_rng(12)
+    n = 20000
+    qs, _ = np.linalg.qr(rng.normal(size=(n, 3, 3)))
+    top = rng.uniform(0.2, 1.0, n)
+    second = top - 10.0 ** rng.uniform(-16, 0, n)
+    third = np.minimum(rng.uniform(-1.0, 1.0, n), second)
+    mats = np.einsum("nij,nj,nkj->nik", qs, np.stack([third, second, top], axis=1), qs)
+    mats = 0.5 * (mats + np.swapaxes(mats, 1, 2)) * 10.0 ** rng.uniform(-3, 9, (n, 1, 1))
+    mats[0], mats[1] = 0.0, 7.0 * np.eye(3)  # zero, all three equal
+    m = mandel_from_matrix(np.moveaxis(mats, 0, -1)).reshape(6, 100, 200)
+    exact = np.linalg.eigvalsh(mats)[:, -1].reshape(100, 200)
+    size = np.linalg.norm(mats, axis=(1, 2)).reshape(100, 200)
+    eps = np.finfo(float).eps
+    value = largest_values(m)
+    assert value.shape == (100, 200)
+    assert np.all(np.abs(value - exact) <= 100 * eps * size)
+    # not vacuous: the closed form alone is far off where the top two nearly coincide
+    off = np.abs(largest_value(m) - exact)[size > 0] / size[size > 0]
+    assert off.max() > 1e4 * eps
+
+
 def test_principal_stress_exact_above_a_strength():
     """With ``exact_above`` the tensors that may exceed it are eigh's to the bit (a crack
     criterion decides on them as before), the other values within round-off and their

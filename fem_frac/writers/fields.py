@@ -10,7 +10,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..fem.space import Space
-from ..fem.tensors import principal_values, tensor_from_mandel, von_mises
+from ..fem.tensors import largest_values, tensor_from_mandel, von_mises
 
 
 def cell_average(space: Space, qp: np.ndarray, cells: np.ndarray | None = None) -> np.ndarray:
@@ -59,7 +59,7 @@ def stress_fields(space: Space, stress: np.ndarray,
     return {
         "stress": np.ascontiguousarray(tensor_from_mandel(mean).T),
         "von_mises": von_mises(mean),
-        "max_principal_stress": principal_values(mean)[-1],
+        "max_principal_stress": largest_values(mean),
     }
 
 
