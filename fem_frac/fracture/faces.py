@@ -11,6 +11,7 @@ old one's (:func:`_kept_pairs`) instead of sorting again.
 from __future__ import annotations
 
 import hashlib
+import itertools
 import weakref
 from collections import OrderedDict
 
@@ -29,6 +30,12 @@ _PAIRS_KEPT = 4
 # and their face adjacency, asked three times a batch (smoothing update, debris check,
 # site lookups); dropped with the pairs
 _ADJACENCY: dict[tuple, sp.csr_matrix] = {}
+# The first rows (r1) of matched faces known to hold each face row in one pair at most (a
+# manifold table's, and what _kept_pairs keeps of them), by identity: no count of the rows
+# per cut. Read-only arrays (_seed_pairs), dropped with them.
+_SINGLE: dict[int, tuple] = {}
+# Numbers for the keys of the tables cut_tets makes (_new_key)
+_MADE = itertools.count()
 # The keys (hashes) of the tables cut_tets made, by identity: a batch asks for the matched
 # faces of its tables about ten times, each a hash of the whole table otherwise.
 _KEYS: dict[int, tuple] = {}
@@ -67,9 +74,18 @@ def _key(tets: np.ndarray) -> tuple:
 
 
 def _remember_key(tets: np.ndarray) -> tuple:
-    """:func:`_key` of ``tets``, kept while ``tets`` lives (a table cut_tets made and will
-    not edit again, as no one edits a mesh's table in place)."""
+    """:func:`_key` of ``tets``, kept while ``tets`` lives (a mesh's table, which no one
+    edits in place)."""
     key = _key(tets)
+    remember(_KEYS, tets, key)
+    return key
+
+
+def _new_key(tets: np.ndarray) -> tuple:
+    """A key of its own for a table :func:`~fem_frac.fracture.topology.cut_tets` just made
+    (and seeds the matched faces of), kept while ``tets`` lives: no hash of its contents,
+    which only another array of the same contents would need (it would match afresh)."""
+    key = (tets.shape, next(_MADE))
     remember(_KEYS, tets, key)
     return key
 
@@ -100,27 +116,38 @@ def _seed_pairs(tets: np.ndarray, pairs, key: tuple | None = None) -> None:
     _PAIRS[key] = pairs
 
 
-def _kept_pairs(pairs, old: np.ndarray, tets: np.ndarray):
+def _kept_pairs(pairs, old: np.ndarray, tets: np.ndarray,
+                changed: np.ndarray | None = None):
     """The matched faces of ``tets`` from ``pairs``, those of the table ``old`` that
     ``tets`` was made from by giving some corners new ids (splits, copies): the pairs
     whose faces still hold one vertex set, with their local corners ordered by the new ids
     (recomputed for the tets whose ids changed). A split never makes two faces equal that
     were not, so no pair is missed; the pairs' order is the old one (every user of the
     pairs is indifferent to it). ``None`` where a face had more than two tets (a chain of
-    pairs, which a split may re-link): then the faces are matched afresh.
+    pairs, which a split may re-link): then the faces are matched afresh. ``changed
+    (m,)``: the tets whose ids differ from ``old``'s, where the caller knows them.
     """
     r1, r2, l1, l2 = pairs
-    if np.bincount(np.concatenate([r1, r2]), minlength=4 * tets.shape[0]).max(initial=0) > 1:
-        return None
-    changed = np.any(np.asarray(old) != tets, axis=1)
-    touched = np.flatnonzero(changed[r1 // 4] | changed[r2 // 4])
+    if recalled(_SINGLE, r1) is None:
+        if np.bincount(np.concatenate([r1, r2]), minlength=4 * tets.shape[0]).max(initial=0) > 1:
+            return None
+        remember(_SINGLE, r1, True)
+    if changed is None:
+        changed = np.any(np.asarray(old) != tets, axis=1)
+    # (a face row's tet is its row // 4: a shift, the rows being >= 0)
+    touched = np.flatnonzero(changed[r1 >> 2] | changed[r2 >> 2])
     n1, g1 = _sorted_face(tets, r1[touched])
     n2, g2 = _sorted_face(tets, r2[touched])
-    l1, l2 = l1.copy(), l2.copy()
-    l1[touched], l2[touched] = n1, n2
+    apart = np.any(g1 != g2, axis=1)
     keep = np.ones(r1.size, dtype=bool)
-    keep[touched[np.any(g1 != g2, axis=1)]] = False
-    return r1[keep], r2[keep], l1[keep], l2[keep]
+    keep[touched[apart]] = False
+    out = r1[keep], r2[keep], l1[keep], l2[keep]
+    # the touched pairs kept, at their places among the kept ones: new local corners
+    stay = touched[~apart]
+    at = stay - np.searchsorted(touched[apart], stay)
+    out[2][at], out[3][at] = n1[~apart], n2[~apart]
+    remember(_SINGLE, out[0], True)  # a subset of pairs whose rows are each in one
+    return out
 
 
 def _sorted_face(tets: np.ndarray, rows: np.ndarray):

@@ -43,6 +43,7 @@ from .faces import (
     _face_pairs,
     _held,
     _kept_pairs,
+    _new_key,
     _remember_key,
     _seed_pairs,
     face_adjacency,
@@ -198,7 +199,9 @@ def rebuilt(old: Mesh, tets: np.ndarray, node_map: np.ndarray) -> tuple[Mesh, Tr
     # every face of the new mesh (rows 4 tet + local face: a tet keeps its row, and the
     # image of row r in old ids is the old face at row r)
     faces = tets[:, TET_FACES].reshape(-1, 3)
-    known = _BOUNDARY_ROWS.get(old, {})
+    # the old mesh's rows, kept for it too where a sort found them (its next cut: a debris
+    # retry, a benchmark's repeat)
+    known = _BOUNDARY_ROWS.setdefault(old, {})
     image = None
     boundaries, rows = {}, {}
     for name, tri in old.boundaries.items():
@@ -213,6 +216,7 @@ def rebuilt(old: Mesh, tets: np.ndarray, node_map: np.ndarray) -> tuple[Mesh, Tr
             if np.any(row < 0):
                 raise ValueError(f"boundary {name!r}: facets that are not faces of the mesh")
             same = _corners(node_map[faces[row]], tri)
+            known[name] = row
         # keep the caller's vertex order (and so the orientation) of every triangle
         boundaries[name] = np.take_along_axis(faces[row], np.argmax(same, axis=2), axis=1)
         rows[name] = row
@@ -298,7 +302,9 @@ def cut_tets(mesh: Mesh, vertices, normals, separate: bool = True
     n = mesh.n_points
     # the flat positions in ``tets`` of the vertices to split (each vertex's ascending)
     flat = tets.reshape(-1)
-    held = np.flatnonzero(np.isin(flat, vertices))
+    wanted = np.zeros(n, dtype=bool)
+    wanted[vertices] = True
+    held = np.flatnonzero(wanted[flat])
     holder = flat[held]  # the vertex each held before the splits
     # reference points of the originals and of the copies made so far
     ref = np.concatenate([np.asarray(mesh.points, dtype=float), np.empty((len(vertices), 3))])
@@ -311,21 +317,26 @@ def cut_tets(mesh: Mesh, vertices, normals, separate: bool = True
     node_map = np.concatenate([np.arange(n, dtype=np.int64), np.asarray(copied, dtype=np.int64)])
     # the splits only gave corners new ids: the faces matched before, still matched, are
     # the new table's (a sort of every face saved for each of the tables below)
-    pairs = _kept_pairs(_face_pairs(mesh.tets), mesh.tets, tets)
+    # the tets a split changed: only corners it held can have new ids
+    changed = np.zeros(tets.shape[0], dtype=bool)
+    changed[held[flat[held] != holder] // 4] = True
+    pairs = _kept_pairs(_face_pairs(mesh.tets), mesh.tets, tets, changed)
     if pairs is not None:
-        _seed_pairs(tets, pairs, _remember_key(tets))
+        _seed_pairs(tets, pairs, _new_key(tets))
     if separate:
         # on a table already separated, only the corners (old and new ids) of the tets a
         # split changed can have lost a face between their fans
         candidates = None
         if pairs is not None and _is_separated(mesh.tets):
-            changed = np.any(tets != mesh.tets, axis=1)
             candidates = np.unique(np.concatenate([tets[changed].ravel(),
                                                    mesh.tets[changed].ravel()]))
-        split, (tets, later) = tets, _separate_tets(tets, node_map.size, candidates)
-        node_map = node_map[later]
-        if pairs is not None:  # a separation gives no face to another tet
-            _seed_pairs(tets, _kept_pairs(pairs, split, tets), _remember_key(tets))
+        separated, later = _separate_tets(tets, node_map.size, candidates)
+        if later.size > node_map.size:  # fans came apart: copies, the pairs kept again
+            if pairs is not None:  # a separation gives no face to another tet
+                _seed_pairs(separated, _kept_pairs(pairs, tets, separated),
+                            _new_key(separated))
+            tets, node_map = separated, node_map[later]
+        # (else the same table: no fan came apart, every corner kept its id)
         remember(_SEPARATED, tets, True)
     return tets, node_map
 
@@ -340,10 +351,13 @@ def check_separated(mesh: Mesh) -> bool:
     """Whether every vertex of ``mesh`` is one face-connected fan of tets (as a conforming
     mesh's are, and every table :func:`cut_tets` makes), found once by a whole separation
     (:func:`separate_nonmanifold`) and then kept for its table, so that the first cut of
-    a mesh that did not come from a cut also separates around its splits only."""
+    a mesh that did not come from a cut also separates around its splits only. The
+    table's key for its matched faces is kept with it, as for the tables cut_tets makes
+    (a batch asks for them several times, each a hash of the whole table otherwise)."""
     tets = mesh.tets
     if _is_separated(tets):
         return True
+    _remember_key(tets)
     _, node_map = _separate_tets(tets, mesh.n_points)
     if node_map.size != mesh.n_points:
         return False
