@@ -225,7 +225,8 @@ def select_sites(points: np.ndarray, tets: np.ndarray, sigma1: np.ndarray,
                  direction: np.ndarray, strength: float, neighbourhood: sp.csr_matrix,
                  on_crack: np.ndarray, protected: np.ndarray, limit: int,
                  lookups: Star | None = None, front: np.ndarray | None = None,
-                 near: np.ndarray | None = None, peak_first: bool = False) -> Sites:
+                 near: np.ndarray | None = None, peak_first: bool = False,
+                 centroids: np.ndarray | None = None) -> Sites:
     """The batch of at most ``limit`` sites (module docstring).
 
     ``points (n, 3)``, ``tets (m, 4)`` reference mesh; ``sigma1 (m,)``, ``direction (m, 3)``
@@ -236,6 +237,7 @@ def select_sites(points: np.ndarray, tets: np.ndarray, sigma1: np.ndarray,
     tets near a crack; when not given, those whose neighbourhood holds an ``on_crack``
     vertex); without ``front``, ``near`` is ignored. ``peak_first``: the most stressed
     vertex (:func:`vertex_stress`) before the nearest plane (cohesive cracks).
+    ``centroids (m, 3)``: the tets' centroids where known (made here otherwise).
     """
     tets = np.asarray(tets, dtype=np.int64)
     candidates = np.flatnonzero(sigma1 > strength)
@@ -244,9 +246,10 @@ def select_sites(points: np.ndarray, tets: np.ndarray, sigma1: np.ndarray,
     lookups = lookups if lookups is not None else star(tets, points.shape[0])
     if front is not None and near is None:
         near = near_marked(tets, neighbourhood, on_crack)
-    centroids = points[tets].mean(axis=1)
+    centroids = points[tets].mean(axis=1) if centroids is None else centroids
     peak = vertex_stress(lookups.incidence, sigma1) if peak_first else None
-    candidates = candidates[np.lexsort((candidates, -sigma1[candidates]))]
+    # the largest first, ties by element id (a stable sort of the ascending candidates)
+    candidates = candidates[np.argsort(-sigma1[candidates], kind="stable")]
     pattern = neighbourhood.tocsr()
     claimed, used = np.zeros(tets.shape[0], dtype=bool), np.zeros(points.shape[0], dtype=bool)
     chosen: list[tuple[int, int]] = []

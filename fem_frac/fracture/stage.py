@@ -148,12 +148,16 @@ class _Topology:
     principal: tuple | None = None  # (stress, (sigma1, direction), smoothed) last asked
     planes: PlaneSites | None = None  # fracture.planes: where cracks may open
     own: np.ndarray | None = None  # tets checked against their own stress (front_stress)
+    centroids: np.ndarray | None = None  # of the tets (a crack keeps them)
 
 
 def _topology(config: schema.Fracture, mesh: Mesh, smoothing, strict: bool,
-              volumes: np.ndarray | None = None) -> _Topology:
-    """The caches of ``mesh``; ``volumes``: its tets' where known (a crack keeps them)."""
+              volumes: np.ndarray | None = None, centroids: np.ndarray | None = None
+              ) -> _Topology:
+    """The caches of ``mesh``; ``volumes``, ``centroids``: its tets' where known (a crack
+    keeps them: its copies of vertices are at the originals' coordinates, to the bit)."""
     volumes = tet_volumes(mesh.points, mesh.tets) if volumes is None else volumes
+    centroids = mesh.points[mesh.tets].mean(axis=1) if centroids is None else centroids
     # debris: a new piece smaller than the median smoothing neighbourhood
     pattern = neighbourhoods(smoothing)
     on_crack = np.zeros(mesh.n_points, dtype=bool)
@@ -171,7 +175,7 @@ def _topology(config: schema.Fracture, mesh: Mesh, smoothing, strict: bool,
     return _Topology(mesh, smoothing, protected, star(mesh.tets, mesh.n_points), volumes,
                      float(np.median(pattern @ volumes)), on_crack,
                      np.zeros(mesh.n_points, dtype=bool), front, near, normals,
-                     planes=planes, own=own)
+                     planes=planes, own=own, centroids=centroids)
 
 
 class FractureStage:
@@ -317,7 +321,7 @@ class FractureStage:
                                     length=s.length, rings=s.rings, method=s.method,
                                     volumes=topo.volumes)
         self._topo = _topology(self.config, mesh, smoothing, strict=False,
-                               volumes=topo.volumes)
+                               volumes=topo.volumes, centroids=topo.centroids)
         return self._topo
 
 
@@ -366,7 +370,8 @@ class FractureStage:
                             self.config.tensile_strength, topo.smoothing, topo.on_crack,
                             topo.protected | topo.refused, limit, topo.star,
                             front=topo.front, near=topo.near,
-                            peak_first=self.config.fracture_energy is not None)
+                            peak_first=self.config.fracture_energy is not None,
+                            centroids=topo.centroids)
 
     def open(self, topo: _Topology, n_pieces: int, sites: Sites):
         """Open ``sites`` on ``topo.mesh``: ``(sites kept, new mesh, transfer, dropped
