@@ -235,10 +235,8 @@ def select_sites(points: np.ndarray, tets: np.ndarray, sigma1: np.ndarray,
     ``lookups`` the :func:`star` of the mesh (made here when not given). ``front (n,)``
     bool per vertex turns on growth along fronts, with ``near (m,)`` bool per tet (the
     tets near a crack; when not given, those whose neighbourhood holds an ``on_crack``
-    vertex); without ``front``, ``near`` is ignored. ``peak_first``: the most stressed
-    vertex (:func:`vertex_stress`) before the nearest plane (cohesive cracks).
-    ``centroids (m, 3)``: the tets' centroids where known (made here otherwise).
-    """
+    vertex); without ``front``, ``near`` is ignored. ``peak_first``: the most stressed vertex
+    (:func:`vertex_stress`) before the nearest plane (cohesive). ``centroids (m, 3)``: the tets'."""
     tets = np.asarray(tets, dtype=np.int64)
     candidates = np.flatnonzero(sigma1 > strength)
     if candidates.size == 0 or limit <= 0:
@@ -248,8 +246,7 @@ def select_sites(points: np.ndarray, tets: np.ndarray, sigma1: np.ndarray,
         near = near_marked(tets, neighbourhood, on_crack)
     centroids = points[tets].mean(axis=1) if centroids is None else centroids
     peak = vertex_stress(lookups.incidence, sigma1) if peak_first else None
-    # the largest first, ties by element id (a stable sort of the ascending candidates)
-    candidates = candidates[np.argsort(-sigma1[candidates], kind="stable")]
+    candidates = candidates[np.argsort(-sigma1[candidates], kind="stable")]  # ties by id
     pattern = neighbourhood.tocsr()
     claimed, used = np.zeros(tets.shape[0], dtype=bool), np.zeros(points.shape[0], dtype=bool)
     chosen: list[tuple[int, int]] = []

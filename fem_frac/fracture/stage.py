@@ -29,6 +29,7 @@ import numpy as np
 
 from ..config import schema
 from ..errors import CaseError, SolverError
+from ..fem.tensors import largest_values
 from ..mesh.mesh import Mesh, tet_volumes
 from ..plasticity.regions import selected_elements
 from ..solve.problem import free_rigid_modes
@@ -146,6 +147,7 @@ class _Topology:
     near: np.ndarray | None = None  # and the tets whose neighbourhood reaches a crack
     front_normals: np.ndarray | None = None  # the crack's normal at tets on a front
     principal: tuple | None = None  # (stress, (sigma1, direction), smoothed) last asked
+    smoothed: tuple | None = None  # (stress, smoothed stress) last asked
     planes: PlaneSites | None = None  # fracture.planes: where cracks may open
     own: np.ndarray | None = None  # tets checked against their own stress (front_stress)
     centroids: np.ndarray | None = None  # of the tets (a crack keeps them)
@@ -334,10 +336,7 @@ class FractureStage:
         stress = body.state.stress
         if topo.principal is not None and topo.principal[0] is stress:
             return topo.principal[1]
-        own = cell_average(body.disc.space, stress)
-        smoothed = smooth(topo.smoothing, own)
-        if topo.own is not None:
-            smoothed = np.where(topo.own, own, smoothed)
+        smoothed = self._smoothed(body, topo)
         # the values that decide sites by eigh, the rest in closed form; cohesive cracks
         # also weigh the values and directions below the strength (peaks, fronts)
         exact = self.config.tensile_strength if self.config.fracture_energy is None else None
@@ -345,8 +344,29 @@ class FractureStage:
         topo.principal = (stress, result, smoothed)
         return result
 
+    def _smoothed(self, body: Body, topo: _Topology) -> np.ndarray:
+        """The smoothed Mandel stress ``(6, m)`` of the body's state (each tet's own at a
+        cohesive front with ``front_stress: element``), kept for the state last asked."""
+        stress = body.state.stress
+        if topo.smoothed is not None and topo.smoothed[0] is stress:
+            return topo.smoothed[1]
+        own = cell_average(body.disc.space, stress)
+        smoothed = smooth(topo.smoothing, own)
+        if topo.own is not None:
+            smoothed = np.where(topo.own, own, smoothed)
+        topo.smoothed = (stress, smoothed)
+        return smoothed
+
     def _published(self, body: Body, topo: _Topology) -> Body:
-        sigma1, _ = self.principal(body, topo)
+        """The body with its field :data:`FIELD`: the values of :meth:`principal` where the
+        stage has them for this state, else the largest values alone (no site is chosen on
+        this state: a step's last one; fem.tensors.largest_values, within ~100 ulps of the
+        size of the eigen-decomposition's, whose directions nobody would read)."""
+        stress = body.state.stress
+        if topo.principal is not None and topo.principal[0] is stress:
+            sigma1 = topo.principal[1][0]
+        else:
+            sigma1 = largest_values(self._smoothed(body, topo))
         return body.with_fields(**{FIELD: sigma1})
 
     def sites(self, body: Body, topo: _Topology, n: int, batch: int, limit: int) -> Sites:
