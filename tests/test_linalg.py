@@ -72,6 +72,21 @@ def test_factorization_is_reused(clamped, method):
 
 
 @pytest.mark.parametrize("method", METHODS)
+def test_solves_into_a_given_array(clamped, method):
+    """``out``: the solution written there (in place where the backend can), the same bits
+    as without it; a column block of a larger Fortran buffer serves."""
+    fact = factorize(clamped, method)
+    b = np.asfortranarray(np.random.default_rng(3).standard_normal((clamped.shape[0], 3)))
+    buffer = np.full((clamped.shape[0], 7), np.nan, order="F")
+    out = fact.solve(b, out=buffer[:, 2:5])
+    assert np.shares_memory(out, buffer)
+    np.testing.assert_array_equal(buffer[:, 2:5], fact.solve(b))
+    assert np.isnan(buffer[:, :2]).all() and np.isnan(buffer[:, 5:]).all()
+    with pytest.raises(ValueError, match="out"):
+        fact.solve(b, out=np.empty((clamped.shape[0], 3)))  # C order
+
+
+@pytest.mark.parametrize("method", METHODS)
 def test_backends_agree(clamped, method):
     b = np.random.default_rng(2).standard_normal(clamped.shape[0])
     reference = factorize(clamped, "superlu").solve(b)

@@ -93,8 +93,8 @@ def bordered_factor(base: Factorization, tie: np.ndarray, matrix: sp.csr_matrix,
     ctg = np.empty((m, m))  # C^T G: that of the reused columns kept
     ctg[np.ix_(new, new)] = prior.ctg[np.ix_(old, old)] if new.size else 0.0
     if fresh.size:
-        g = root.solve(c[:, fresh].toarray(order="F"))  # as PARDISO reads it
-        columns.append(g)
+        g = columns.append(fresh.size)  # the new columns, solved into the buffer
+        _solve_into(root, c[:, fresh].toarray(order="F"), g)  # as PARDISO reads it
         block = c.T @ np.ascontiguousarray(g)
         ctg[:, fresh], ctg[fresh, :] = block, block.T
     cho = _schur_factor(d - ctg, d) if m else None
@@ -180,10 +180,18 @@ class _Columns:
         slot[fresh] = columns.live + np.arange(k)
         return columns, slot
 
-    def append(self, g: np.ndarray) -> None:
-        k = g.shape[1]
-        self.buffer[:, self.live: self.live + k] = g
+    def append(self, k: int) -> np.ndarray:
+        """The next ``k`` columns of the buffer, now live, to be filled (a view)."""
         self.live += k
+        return self.buffer[:, self.live - k: self.live]
+
+
+def _solve_into(root, b: np.ndarray, out: np.ndarray) -> None:
+    """``out[...] = A^-1 b`` through ``root``, in place where its backend can."""
+    if isinstance(root, Factorization):
+        root.solve(b, out=out)
+    else:
+        out[...] = root.solve(b)
 
 
 def _copies(tie: np.ndarray) -> np.ndarray:

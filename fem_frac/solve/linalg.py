@@ -72,15 +72,27 @@ class Factorization:
         self.probe_residual = float("nan")
         self.nonzeros = getattr(solve, "nonzeros", None)
 
-    def solve(self, b: np.ndarray) -> np.ndarray:
-        """Solve A x = b. ``b``: shape (n,) or (n, k). Returns x of the same shape, float64."""
+    def solve(self, b: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
+        """Solve A x = b. ``b``: shape (n,) or (n, k). Returns x of the same shape, float64:
+        ``out`` where given (float64, b's shape, Fortran order), written in place by the
+        backends that can (PARDISO: no array of the solution's size made and copied)."""
         b = np.asarray(b, dtype=np.float64)
         if b.ndim not in (1, 2) or b.shape[0] != self.n:
             raise ValueError(f"right-hand side of shape {b.shape}; expected ({self.n},) or "
                              f"({self.n}, k)")
+        if out is not None and (out.shape != b.shape or out.dtype != np.float64
+                                or not out.flags.f_contiguous):
+            raise ValueError("out: float64, the right-hand side's shape, Fortran order")
         if b.ndim == 2 and b.shape[1] == 0:
-            return np.zeros_like(b)
-        return self._solve(b)
+            x = np.zeros_like(b)
+        elif out is not None and getattr(self._solve, "writes_into", False):
+            return self._solve(b, out)
+        else:
+            x = self._solve(b)
+        if out is None:
+            return x
+        out[...] = x
+        return out
 
     def __repr__(self) -> str:
         return (f"Factorization(method={self.method!r}, n={self.n}, "
@@ -216,13 +228,14 @@ def _factorize_pardiso(a: sp.csr_matrix) -> Solve:
 
 
 def _pardiso_solve(handle: _PardisoHandle) -> Solve:
-    def solve(b: np.ndarray) -> np.ndarray:
+    def solve(b: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
         b = np.asfortranarray(b)
-        x = np.empty_like(b, order="F")
+        x = np.empty_like(b, order="F") if out is None else out
         _pardiso_check(handle.call(33, b, x), "back-solve")
         return x
 
     solve.nonzeros = int(handle.iparm[17])  # the factor's, as PARDISO reports them
+    solve.writes_into = True  # takes ``out``: PARDISO writes x there (Fortran order)
     return solve
 
 
