@@ -396,3 +396,15 @@ def test_the_case_flag_reaches_gmsh(tmp_path, capsys):
     code, err = _run(capsys, _geo_case(tmp_path, "ok.geo", allow=True), "-o", tmp_path / "out")
     assert code == 0, err
     assert made.read_text().strip() == "hello"
+
+
+@pytest.mark.parametrize("name", ["frame_000001.vtu", 'a"b.vtu', "a'b.vtu", "a'\"b.vtu",
+                                  "a&b<c>d.vtu", "tab\tnew\nline\rend.vtu", "é ü.vtu"])
+def test_the_series_index_quotes_file_names_as_the_standard_library_does(name):
+    """The .pvd's ``file`` attribute: fem_frac.writers.series.quoteattr (no import of
+    xml.sax.saxutils, which pulls in urllib.request) gives its characters exactly."""
+    from xml.sax.saxutils import quoteattr as standard
+
+    from fem_frac.writers.series import quoteattr
+
+    assert quoteattr(name) == standard(name)

@@ -10,9 +10,7 @@ from __future__ import annotations
 import sys
 import time
 from dataclasses import dataclass, field
-from typing import TextIO
-
-from tqdm import tqdm
+from typing import TYPE_CHECKING, TextIO
 
 from ..fracture.stage import Batch, FractureEvent
 from ..solve.discretization import Log
@@ -24,6 +22,9 @@ from ..world.state import Body, World
 from ..writers.history import HistoryWriter
 from ..writers.series import SeriesWriter
 from .results import CrackWriter, Layout, empty, frame, history_row, write_step
+
+if TYPE_CHECKING:
+    from tqdm import tqdm
 
 
 def step_info(step: Step) -> StepInfo:
@@ -205,6 +206,8 @@ class Progress:
             # the width is the terminal's; the height is given, as a terminal may report
             # none (tqdm then draws nothing); the rate behind the ETA is an average that
             # follows slower or faster stretches of steps without jumping at each one
+            from tqdm import tqdm  # only where a bar is drawn (its import: ~6 ms)
+
             bar = console.bar = tqdm(total=self.steps, file=console.stream, desc=status,
                                      bar_format=BAR_FORMAT, miniters=1, smoothing=0.1,
                                      nrows=24)
@@ -219,6 +222,8 @@ def _count(n: int, word: str) -> str:
 
 
 def _interval(seconds: float) -> str:
+    from tqdm import tqdm
+
     return tqdm.format_interval(seconds)
 
 
