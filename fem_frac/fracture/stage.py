@@ -292,7 +292,8 @@ class FractureStage:
                     "every piece (output so far kept)")
         gone = np.isin(body.labels, [k for k, _ in loose])
         mesh, transfer = extract(body.mesh, ~gone)
-        disc = rediscretize(body.disc, mesh, self.timer, "after dropping loose slivers")
+        disc = rediscretize(body.disc, mesh, self.timer, "after dropping loose slivers",
+                            transfer)
         state = carry(body.state, body.disc, disc, transfer, inertia=False)
         self.log(f"fracture   step {n}: dropped {len(loose)} loose sliver(s) of "
                  f"{np.count_nonzero(gone)} elements ({volumes[[k for k, _ in loose]].sum():.3g}"

@@ -169,7 +169,8 @@ class RigidStage:
         else:
             mesh, transfer = extract(body.mesh, ~leaving)
             with self.timer("fragments rebuild"):
-                disc = rediscretize(body.disc, mesh, self.timer, "after a piece left")
+                disc = rediscretize(body.disc, mesh, self.timer, "after a piece left",
+                                    transfer)
             state = carry(body.state, body.disc, disc, transfer, inertia=True)
             rest = body_of(disc, state, {k: v[transfer.element_map]
                                          for k, v in body.fields.items()})

@@ -159,10 +159,12 @@ def _seed(previous: tuple | None, space: Space, ops: Operators, constrained: Con
     """``(factorization, tie)`` of the ``previous`` discretization for a stepper on a mesh a
     crack insertion made from it (:mod:`fem_frac.solve.bordered`: the elements' stiffness
     and mass matrices, hence those of the Jacobian with inertia, ``K + c M``, the steps'
-    length fixed, are the old mesh's scattered to new dofs), ``None`` where it does not
-    apply: no factorization made there yet, cohesive faces (whose secant stiffness changes
-    the iteration matrix anyway), P2 (mid-edge nodes renumbered), or a free dof that copies
-    a constrained one."""
+    length fixed, are the old mesh's scattered to new dofs), or that pieces left
+    (:func:`~fem_frac.solve.bordered.restricted`), ``None`` where it does not apply: no
+    factorization made there yet, cohesive faces (whose secant stiffness changes the
+    iteration matrix anyway), P2 (mid-edge nodes renumbered), or pieces that left sharing a
+    vertex with the rest or freeing a constrained dof. A free copy of a constrained dof
+    ties to none (-1: fem_frac.solve.bordered takes it as a copy)."""
     if previous is None or ops.interface is not None or space.order != 1:
         return None
     old, node_map = previous
@@ -170,11 +172,26 @@ def _seed(previous: tuple | None, space: Space, ops: Operators, constrained: Con
     if not isinstance(factor, Factorization) or old.ops.interface is not None:
         return None  # none made yet, or PETSc's (which keeps its own)
     # the vector dofs of the node map (fracture.remap.dof_transfer, a layer above this one)
-    dofs = (3 * np.asarray(node_map, dtype=np.int64)[:, None] + np.arange(3)).ravel()
+    node_map = np.asarray(node_map, dtype=np.int64)
+    dofs = (3 * node_map[:, None] + np.arange(3)).ravel()
     index = np.full(old.space.n_dofs, -1, dtype=np.int64)
     index[old.constrained.free] = np.arange(old.constrained.free.size)
-    tie = index[dofs[constrained.free]]
-    return (factor, tie) if np.all(tie >= 0) else None
+    tie = index[dofs[constrained.free]]  # -1: a free copy of a constrained dof
+    if space.mesh.n_tets == old.mesh.n_tets:
+        return factor, tie  # a crack insertion: every tet kept, copies tied to vertices
+    if not np.all(tie >= 0):
+        return None
+    # pieces left (fem_frac.fracture.topology.extract): exact through the old factor where
+    # they shared no vertex with the rest and the rest kept its free dofs
+    kept = np.zeros(old.mesh.n_points, dtype=bool)
+    kept[node_map] = True
+    held = kept[np.asarray(old.mesh.tets)]
+    if np.any(held.any(axis=1) & ~held.all(axis=1)) \
+            or np.count_nonzero(kept[old.constrained.free // 3]) != tie.size:
+        return None
+    from .bordered import restricted
+
+    return restricted(factor, tie), np.arange(tie.size)
 
 
 def _initial_cohesive_stiffness(ops: Operators) -> sp.csr_matrix | None:

@@ -43,7 +43,8 @@ def rediscretize(disc: Discretization, mesh, timer, why: str,
                  transfer: Transfer | None = None) -> Discretization:
     """``disc``'s recipe on ``mesh``, a mesh a topology change made (``why``, for the
     message): a support or load whose faces all left acts on nothing there. ``transfer``:
-    given for a crack insertion, whose operators are updated from ``disc``'s."""
+    given for a crack insertion, whose operators are updated from ``disc``'s, or for pieces
+    leaving, whose solves go through ``disc``'s factorization."""
     from ..errors import CaseError, SolverError
     from ..solve.discretization import discretize
 
