@@ -27,6 +27,10 @@ another order where a neighbour split, so equal to ``REUSE`` of its size) keeps 
 of ``G`` and of ``C^T G``: a new mesh back-solves only its new or changed columns. The
 columns live in one buffer along the chain (:class:`_Columns`), nothing copied.
 
+Pieces that leave the mesh share no vertex with the rest, so the old Jacobian is block
+diagonal and the new one is its block of the rest: :func:`restricted` solves through the
+old factorization, exactly, and roots the later insertions' bordered factors.
+
 Policy (:func:`bordered_factor`), deterministic so that a run repeats itself to the bit:
 keep the base while ``G`` holds at most ``SHARE`` (1) times the entries of the base's
 factor (``m <= SHARE nnz(L) / n``, PARDISO reports ``nnz(L)``): a solve then streams
