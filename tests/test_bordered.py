@@ -108,44 +108,6 @@ def test_the_whole_jacobian_with_its_free_dofs_gives_the_same_factor(monkeypatch
     np.testing.assert_array_equal(through_whole.c.toarray(), sub.c.toarray())
 
 
-def test_copies_left_off_a_support_join_the_copies(monkeypatch):
-    """A crack that reaches a held face gives its vertices there copies the support does not
-    hold (the hold is by vertex id here: the originals only). Their dofs copy no free dof
-    of the base (tie -1); the bordered factor takes them as copies, the base being the new
-    matrix with them held, and still solves as the new matrix does, through two such
-    insertions."""
-    monkeypatch.setattr(bordered, "SHARE", 1e9)
-    monkeypatch.setattr(bordered, "COPIES", 1e9)
-    m0 = structured_box((6, 4, 4))
-    held = np.flatnonzero(np.abs(m0.points[:, 1]) < 1e-12)  # the face y = 0, by id
-
-    def system_held(mesh):
-        k = stiffness(build_space(mesh, 1), TANGENT).tocsr()
-        free = np.setdiff1d(np.arange(3 * mesh.n_points), (3 * held[:, None] + np.arange(3)))
-        return k[free][:, free].tocsr(), free
-
-    def cut(mesh, x):  # from the held face y = 0 to y = 0.5, through the thickness' inside
-        p = mesh.points
-        on = np.flatnonzero((np.abs(p[:, 0] - x) < 1e-12) & (p[:, 1] < 0.5 + 1e-12)
-                            & (p[:, 2] > 1e-12) & (p[:, 2] < 1 - 1e-12))
-        return open_crack(mesh, on, np.tile([1.0, 0.0, 0.0], (on.size, 1)))
-
-    m1, t1 = cut(m0, 0.5)
-    m2, t2 = cut(m1, 2 / 6)
-    (a0, f0), (a1, f1), (a2, f2) = system_held(m0), system_held(m1), system_held(m2)
-    tie1 = tie(f0, f1, np.asarray(t1.node_map), 3 * m0.n_points)
-    tie2 = tie(f1, f2, np.asarray(t2.node_map), 3 * m1.n_points)
-    assert np.any(tie1 < 0) and np.any(tie2 < 0)  # free copies of held dofs
-    one = bordered_factor(factorize(a0), tie1, a1)
-    two = bordered_factor(one, tie2, a2)
-    assert one is not None and two is not None and two.root is one.root
-    rng = np.random.default_rng(4)
-    for a, f in ((a1, one), (a2, two)):
-        b = rng.standard_normal((a.shape[0], 2))
-        exact = spla.spsolve(a.tocsc(), b)
-        assert np.abs(f.solve(b) - exact).max() <= 1e-10 * np.abs(exact).max()
-
-
 def test_pieces_that_left_solve_through_the_old_factor():
     """A piece sharing no vertex with the rest leaves: the old matrix is block diagonal,
     and the rest's block is solved through the old factorization (bordered.restricted)

@@ -6,10 +6,8 @@ so their matrices do not change, only the dofs they are scattered to. Let ``tie`
 free dof of the new mesh to the free dof of the *base* mesh it copies (several new dofs may
 tie to one base dof: a vertex and its copies), ``E (n', n)`` the matrix of that map
 (``E[i, tie[i]] = 1``) and ``F (n', m)`` the unit columns of the ``m`` *copies*: every new
-dof tied to a base dof except the first one, and every new free dof whose vertex's dof was
-constrained in the base (a split can leave a copy off a support: ``tie`` -1, a zero row of
-``E``). ``T = [E, F]`` is square and invertible, and because tying the copies together
-(holding those off a support) gives back the base mesh,
+dof tied to a base dof except the first one. ``T = [E, F]`` is square and invertible, and
+because tying the copies together gives back the base mesh,
 
     T^T A' T = [[A, C], [C^T, D]],    A = E^T A' E (the base Jacobian),
                                       C = E^T A' F (n x m),  D = F^T A' F (m x m).
@@ -73,28 +71,23 @@ def bordered_factor(base: Factorization, tie: np.ndarray, matrix: sp.csr_matrix,
     ``base`` (a :class:`Factorization` of the base mesh's, or a bordered one, whose base is
     then used with the ties composed and whose columns of ``G`` are reused where ``C``'s
     did not change) and ``tie (n',)``: the free dof of ``base``'s matrix each new free dof
-    copies, -1 for one that copies none (its vertex's dof was constrained there: a copy
-    the split left off a support; it joins the copies, ``F``, and the base is the new
-    matrix with it held). ``None`` where the module's policy says to refactorize.
-    ``free``: ``matrix`` is the whole Jacobian and these (ascending) its free dofs; only
-    the copies' columns are taken, not the free-dof matrix (the same entries)."""
+    copies. ``None`` where the module's policy says to refactorize. ``free``: ``matrix``
+    is the whole Jacobian and these (ascending) its free dofs; only the copies' columns
+    are taken, not the free-dof matrix (the same entries)."""
     local = np.asarray(tie, dtype=np.int64)
     root, prior, tie = base, None, local
     if hasattr(base, "tie"):  # compose with the meshes between
-        root, prior = base.root, base
-        tie = np.where(local >= 0, base.tie[np.maximum(local, 0)], -1)
+        root, prior, tie = base.root, base, base.tie[local]
     start = time.perf_counter()
     n = root.n
-    held = tie[tie >= 0]
-    if held.size == 0 or held.max() >= n or np.any(np.bincount(held, minlength=n) == 0):
+    if tie.max() >= n or np.any(np.bincount(tie, minlength=n) == 0):
         return None  # not every base dof has a copy left, or one that is not the base's
     copies = _copies(tie)
     m = copies.size
     if m > copies_limit(root):
         return None
     columns, d = _copy_columns(sp.csr_matrix(matrix), copies, free)
-    rows = np.flatnonzero(tie >= 0)
-    tied = sp.csr_matrix((np.ones(rows.size), (tie[rows], rows)),
+    tied = sp.csr_matrix((np.ones(tie.size), (tie, np.arange(tie.size))),
                          shape=(n, tie.size))  # E^T
     c = sp.csc_matrix(tied @ columns)  # (n, m), a few entries a column
     c.sort_indices()
@@ -159,10 +152,7 @@ def restricted(base: Factorization, keep: np.ndarray) -> Factorization:
 
 def _solve(root, tied, tie, copies, c, cho, g, slot):
     """``A' x = b`` (module docstring) with ``g`` the live columns of G, ``slot`` each
-    copy's column of it; ``E w`` is zero at the copies of no base dof (``tie`` -1)."""
-    loose = np.flatnonzero(tie < 0)
-    tie = np.maximum(tie, 0)
-
+    copy's column of it."""
     def solve(b: np.ndarray) -> np.ndarray:
         b = np.asarray(b, dtype=np.float64)
         one = b.ndim == 1
@@ -175,7 +165,6 @@ def _solve(root, tied, tie, copies, c, cho, g, slot):
             spread = np.zeros((g.shape[1], z.shape[1]))  # z on the slots of G's columns
             spread[slot] = z
             x = (y - g @ spread)[tie]
-            x[loose] = 0.0
             x[copies] += z
         return x[:, 0] if one else x
 
@@ -232,9 +221,9 @@ def _solve_into(root, b: np.ndarray, out: np.ndarray) -> None:
 
 def _copies(tie: np.ndarray) -> np.ndarray:
     """Sorted new dofs that are copies: the first new dof tied to each base dof represents
-    it, the others copy it; one tied to none (-1) is a copy too."""
+    it, the others copy it."""
     order = np.argsort(tie, kind="stable")
-    first = np.r_[True, tie[order][1:] != tie[order][:-1]] & (tie[order] >= 0)
+    first = np.r_[True, tie[order][1:] != tie[order][:-1]]
     return np.sort(order[~first])
 
 
