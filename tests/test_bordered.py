@@ -135,6 +135,11 @@ def test_pieces_that_left_solve_through_the_old_factor():
     b = np.random.default_rng(5).standard_normal((a_rest.shape[0], 2))
     exact = spla.spsolve(a_rest.tocsc(), b)
     assert np.abs(f.solve(b) - exact).max() <= 1e-10 * np.abs(exact).max()
+    # a chain stacks at most RESTRICTED of them (each a pass over the old dofs a solve)
+    every = np.arange(a_rest.shape[0])
+    for _ in range(bordered.RESTRICTED - 1):
+        f = bordered.restricted(f, every)
+    assert f is not None and bordered.restricted(f, every) is None
 
 
 def test_solves_as_newmarks_jacobian_does_through_a_chain_of_insertions(monkeypatch):

@@ -63,6 +63,8 @@ SINGULAR = 1e-12
 # A column of C that moved by at most this share of its largest entry is unchanged: its
 # entries are the same element terms, summed in another order where a neighbour split.
 REUSE = 1e-13
+# Restricted factors (pieces that left) one chain may stack before a fresh factorization.
+RESTRICTED = 8
 
 
 def bordered_factor(base: Factorization, tie: np.ndarray, matrix: sp.csr_matrix,
@@ -129,13 +131,18 @@ def _copy_columns(a: sp.csr_matrix, copies: np.ndarray, free: np.ndarray | None
     return a[:, cols][free], a[cols][:, cols].toarray()
 
 
-def restricted(base: Factorization, keep: np.ndarray) -> Factorization:
+def restricted(base: Factorization, keep: np.ndarray) -> Factorization | None:
     """A factorization of ``A[keep][:, keep]`` through ``base``'s of ``A``, where ``A``
     couples no row of ``keep`` to a row outside it (block diagonal: a piece that left the
     mesh shared no vertex with the rest), so that ``A^-1 [b; 0] = [A_kk^-1 b; 0]``: one
     solve of ``base`` on ``b`` placed at ``keep`` (in exact arithmetic the other rows are
     zero). It serves as the root of later bordered factors (its copies' limit that of
-    ``base``'s factor)."""
+    ``base``'s factor). ``None`` past ``RESTRICTED`` such factors in a chain (each adds a
+    pass over the old dofs to every solve): then the caller factorizes afresh."""
+    root = getattr(base, "root", base)
+    depth = getattr(root, "depth", 0) + 1
+    if depth > RESTRICTED:
+        return None
     keep = np.asarray(keep, dtype=np.int64)
 
     def solve(b: np.ndarray) -> np.ndarray:
@@ -145,8 +152,7 @@ def restricted(base: Factorization, keep: np.ndarray) -> Factorization:
 
     out = Factorization("restricted " + base.method, keep.size, solve)
     out.probe_residual = base.probe_residual
-    root = getattr(base, "root", base)
-    out.nonzeros = root.nonzeros
+    out.nonzeros, out.depth = root.nonzeros, depth
     return out
 
 

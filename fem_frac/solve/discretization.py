@@ -191,7 +191,8 @@ def _seed(previous: tuple | None, space: Space, ops: Operators, constrained: Con
         return None
     from .bordered import restricted
 
-    return restricted(factor, tie), np.arange(tie.size)
+    rest = restricted(factor, tie)
+    return None if rest is None else (rest, np.arange(tie.size))
 
 
 def _initial_cohesive_stiffness(ops: Operators) -> sp.csr_matrix | None:
