@@ -13,7 +13,8 @@ body (``body_of``: crack measures), support check (``stage.loose``), refactoriza
 new stepper's first ``elastic_factor()``: through the old factorization where
 fem_frac.solve.bordered keeps it, with a fresh factorization timed beside it), the re-solve
 step, and the field the stage publishes for the re-solved state (``stage._published`` on
-the new mesh: with one pass no site is chosen on that state, so its largest values alone). Each piece: best of ``--repeats``, each call from cold caches (a 64 MiB buffer
+the new mesh: with one pass no site is chosen on that state, so its largest values
+alone). Each piece: best of ``--repeats``, each call from cold caches (a 64 MiB buffer
 written first, as in plastic_step.py); selection also right after a batch (as in a run); the
 whole batch end to end through ``stage(step, world)``, cold (the first batch of the process,
 after steps 0 and 1 of the run) and warm (best of the repeats).
