@@ -44,6 +44,9 @@ from .front import continue_planes, crack_front, front_normals, near_crack
 from .planes import PlaneSites, normal_stress, plane_sites
 from .sites import Sites, select_sites, star, tilt
 from .smoothing import (
+    centroids as tet_centres,
+)
+from .smoothing import (
     neighbourhoods,
     principal_stress,
     smooth,
@@ -89,17 +92,19 @@ class FractureEvent:
 
 
 def protected_vertices(config: schema.Fracture, mesh: Mesh, strict: bool = True,
-                       planes: PlaneSites | None = None) -> np.ndarray:
+                       planes: PlaneSites | None = None,
+                       tet_centroids: np.ndarray | None = None) -> np.ndarray:
     """``(n_points,)`` bool: vertices of the ``protect`` entries, which never split, and
     with ``planes`` the vertices that may not split in them (:func:`plane_sites`, made here
     when not given). ``strict``: a box that selects no element is an error (in the case as
-    given; later a piece holding it may have left the mesh)."""
+    given; later a piece holding it may have left the mesh). ``tet_centroids``: the tets'
+    where known."""
     mask = np.zeros(mesh.n_points, dtype=bool)
     if config.planes:
         planes = planes if planes is not None else plane_sites(mesh.points, mesh.tets,
                                                                config.planes)
         mask |= ~planes.usable
-    centroids = None
+    centroids = tet_centroids
     for i, p in enumerate(config.protect):
         if p.boundary is not None:
             if p.boundary not in mesh.boundaries:
@@ -116,7 +121,7 @@ def protected_vertices(config: schema.Fracture, mesh: Mesh, strict: bool = True,
             mask |= inside
             continue
         if p.box is not None and centroids is None:
-            centroids = mesh.points[mesh.tets].mean(axis=1)
+            centroids = tet_centres(mesh.points, mesh.tets)
         tets = selected_elements(mesh, p.subdomain, p.box, ("fracture", "protect", i),
                                  centroids, strict)
         mask[mesh.tets[tets].ravel()] = True
@@ -159,7 +164,7 @@ def _topology(config: schema.Fracture, mesh: Mesh, smoothing, strict: bool,
     """The caches of ``mesh``; ``volumes``, ``centroids``: its tets' where known (a crack
     keeps them: its copies of vertices are at the originals' coordinates, to the bit)."""
     volumes = tet_volumes(mesh.points, mesh.tets) if volumes is None else volumes
-    centroids = mesh.points[mesh.tets].mean(axis=1) if centroids is None else centroids
+    centroids = tet_centres(mesh.points, mesh.tets) if centroids is None else centroids
     # debris: a new piece smaller than the median smoothing neighbourhood
     pattern = neighbourhoods(smoothing)
     on_crack = np.zeros(mesh.n_points, dtype=bool)
@@ -170,7 +175,7 @@ def _topology(config: schema.Fracture, mesh: Mesh, smoothing, strict: bool,
         front, near = crack_front(mesh), near_crack(mesh, pattern)
         normals = front_normals(mesh, front)
     planes = plane_sites(mesh.points, mesh.tets, config.planes) if config.planes else None
-    protected = protected_vertices(config, mesh, strict, planes)
+    protected = protected_vertices(config, mesh, strict, planes, centroids)
     own = None
     if front is not None and config.cohesive_law.front_stress == "element":
         own = front[mesh.tets].any(axis=1)  # the tets at a crack front
