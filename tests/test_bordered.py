@@ -18,7 +18,7 @@ from fem_frac.fem.tensors import isotropic_tangent
 from fem_frac.fracture.topology import open_crack
 from fem_frac.solve import bordered
 from fem_frac.solve.bordered import bordered_factor
-from fem_frac.solve.linalg import factorize
+from fem_frac.solve.linalg import available_methods, factorize
 from meshes import structured_box
 
 ROOT = Path(__file__).parent.parent
@@ -69,11 +69,16 @@ def chain():
             (a2, tie(f1, f2, np.asarray(t2.node_map), 3 * m1.n_points))]
 
 
-def test_solves_as_the_new_stiffness_does_through_a_chain_of_insertions(chain, monkeypatch):
+@pytest.mark.parametrize("method", available_methods())
+def test_solves_as_the_new_stiffness_does_through_a_chain_of_insertions(chain, monkeypatch,
+                                                                         method):
+    """Through the root's forward halves (PARDISO: Y = F C) and through its whole solves
+    (the other backends: G = A^-1 C) alike."""
     (a0, _), (a1, tie1), (a2, tie2) = chain
     monkeypatch.setattr(bordered, "SHARE", 1e9)  # the policy aside: keep the base here
     monkeypatch.setattr(bordered, "COPIES", 1e9)
-    base = factorize(a0)
+    base = factorize(a0, method)
+    assert (base.halves is not None) == (method == "pardiso")
     rng = np.random.default_rng(0)
     one = bordered_factor(base, tie1, a1)
     assert one is not None and one.copies == a1.shape[0] - a0.shape[0] > 0

@@ -86,6 +86,25 @@ def test_solves_into_a_given_array(clamped, method):
         fact.solve(b, out=np.empty((clamped.shape[0], 3)))  # C order
 
 
+@pytest.mark.skipif("pardiso" not in METHODS, reason="PARDISO is not installed here")
+def test_pardiso_halves_are_its_back_solve_and_a_gram_factor(clamped):
+    """Forward then backward substitution is the back-solve to the bit, and the forward
+    half F (A^-1 = F^T F) gives the products b.A^-1.c as F b . F c."""
+    fact = factorize(clamped, "pardiso")
+    forward, backward = fact.halves
+    rng = np.random.default_rng(4)
+    b = np.asfortranarray(rng.standard_normal((clamped.shape[0], 3)))
+    np.testing.assert_array_equal(backward(forward(b)), fact.solve(b))
+    np.testing.assert_array_equal(backward(forward(b[:, 0])), fact.solve(b[:, 0]))
+    gram, exact = forward(b).T @ forward(b), b.T @ fact.solve(b)
+    # both are b.A^-1.b to round-off: eps cond(A) (cond ~1e4 here) of the largest entry
+    np.testing.assert_allclose(gram, exact, rtol=0, atol=1e-9 * np.abs(exact).max())
+    out = np.full((clamped.shape[0], 5), np.nan, order="F")
+    forward(b, out=out[:, 1:4])
+    np.testing.assert_array_equal(out[:, 1:4], forward(b))
+    assert factorize(clamped, "superlu").halves is None
+
+
 @pytest.mark.parametrize("method", METHODS)
 def test_backends_agree(clamped, method):
     b = np.random.default_rng(2).standard_normal(clamped.shape[0])

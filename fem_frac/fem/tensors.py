@@ -67,9 +67,19 @@ def matrices_from_mandel(m: np.ndarray) -> np.ndarray:
 def principal(m: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Eigenvalues ``(..., 3)``, ascending, and unit eigenvectors ``(..., 3, 3)`` (column
     ``k`` belongs to value ``k``) of Mandel tensors ``(6, ...)``: batched
-    :func:`numpy.linalg.eigh`. Signs of the vectors are whatever LAPACK returns."""
+    :func:`numpy.linalg.eigh`, a large batch over the cores (:mod:`fem_frac.threads`, the
+    same bits). Signs of the vectors are whatever LAPACK returns."""
+    from ..threads import map_ranges
+
+    matrices = matrices_from_mandel(m)
     with _converging():
-        return np.linalg.eigh(matrices_from_mandel(m))
+        if matrices.ndim != 3:
+            return np.linalg.eigh(matrices)
+        parts = map_ranges(lambda a, b: np.linalg.eigh(matrices[a:b]), matrices.shape[0])
+    if len(parts) == 1:
+        return parts[0]
+    return (np.concatenate([values for values, _ in parts]),
+            np.concatenate([vectors for _, vectors in parts]))
 
 
 def principal_values(m: np.ndarray) -> np.ndarray:

@@ -419,9 +419,24 @@ def smoothing_operator(
 
 def smooth(operator, element_stress: np.ndarray) -> np.ndarray:
     """Apply ``operator (m, m)`` to element values ``(k, m)`` (e.g. ``(6, m)`` stresses):
-    ``element_stress @ operator.T``, same shape."""
-    x = np.asarray(element_stress, dtype=float)
-    return np.asarray((operator @ x.T).T)
+    ``element_stress @ operator.T``, same shape. A large CSR operator's rows go over the
+    cores (:mod:`fem_frac.threads`; each row's sum the same bits)."""
+    from ..threads import map_ranges
+
+    x = np.asarray(element_stress, dtype=float).T
+    if not (sp.issparse(operator) and operator.format == "csr"):
+        return np.asarray((operator @ x).T)
+    parts = map_ranges(lambda a, b: _rows(operator, a, b) @ x, operator.shape[0])
+    return np.asarray((parts[0] if len(parts) == 1 else np.vstack(parts)).T)
+
+
+def _rows(a: sp.csr_matrix, start: int, stop: int) -> sp.csr_matrix:
+    """Rows ``start:stop`` of ``a``, its data and indices shared (no copy)."""
+    if start == 0 and stop == a.shape[0]:
+        return a
+    lo, hi = a.indptr[start], a.indptr[stop]
+    return sp.csr_matrix((a.data[lo:hi], a.indices[lo:hi], a.indptr[start:stop + 1] - lo),
+                         shape=(stop - start, a.shape[1]))
 
 
 def principal_stress(element_stress: np.ndarray, exact_above: float | None = None

@@ -18,7 +18,19 @@ Cholesky factor of the Schur complement ``S = D - C^T G``, a solve ``A' x = b`` 
     y = A^-1 E^T b,   z = S^-1 (F^T b - C^T y),   w = y - G z,   x = E w + F z
 
 (one back-solve with the base factor and small dense work). Exact, not an iteration: the
-answer is the direct solve's to round-off. The same base serves a sequence of insertions,
+answer is the direct solve's to round-off.
+
+Where the base factorization comes in halves, ``A^-1 = R^T R`` (PARDISO's Cholesky
+``P A P^T = L L^T``: ``R = L^-1 P``, its forward substitution; ``R^T`` its backward one:
+:class:`~fem_frac.solve.linalg.Factorization`), the columns kept are ``Y = R C`` instead of
+``G``: ``m`` forward substitutions, half the work of ``m`` back-solves, and ``C^T G = Y^T
+Y``. A solve is then
+
+    u = R E^T b,   z = S^-1 (F^T b - Y^T u),   w = R^T (u - Y z),   x = E w + F z
+
+still one back-solve, in its two halves.
+
+The same base serves a sequence of insertions,
 ``tie`` composed through the meshes between, and ``m`` grows with them. A column of ``C``
 that an insertion left alone (the copy's elements unchanged; its entries summed again in
 another order where a neighbour split, so equal to ``REUSE`` of its size) keeps its column
@@ -32,7 +44,7 @@ old factorization, exactly, and roots the later insertions' bordered factors.
 Policy (:func:`bordered_factor`), deterministic so that a run repeats itself to the bit:
 keep the base while ``G`` holds at most ``SHARE`` (1) times the entries of the base's
 factor (``m <= SHARE nnz(L) / n``, PARDISO reports ``nnz(L)``): a solve then streams
-``G`` once against the factor twice, and ``G`` takes no more memory than the factor (its
+``G`` once (``Y`` twice) against the factor twice, and ``G`` takes no more memory than the factor (its
 buffer, with columns no longer used, up to about twice; chosen among 0.25, 0.5, 1 and 2 on
 ``cases/notched_beam.yaml``, docs/performance.md). Where
 the backend does not report ``nnz(L)``, keep it while ``m <= COPIES n^(1/3)`` (2.5: where
@@ -71,8 +83,8 @@ def bordered_factor(base: Factorization, tie: np.ndarray, matrix: sp.csr_matrix,
                     free: np.ndarray | None = None) -> Factorization | None:
     """A factorization of ``matrix`` (the new free-dof Jacobian, ``(n', n')``) through
     ``base`` (a :class:`Factorization` of the base mesh's, or a bordered one, whose base is
-    then used with the ties composed and whose columns of ``G`` are reused where ``C``'s
-    did not change) and ``tie (n',)``: the free dof of ``base``'s matrix each new free dof
+    then used with the ties composed and whose columns of ``G`` (or ``Y``) are reused
+    where ``C``'s did not change) and ``tie (n',)``: the free dof of ``base``'s matrix each new free dof
     copies. ``None`` where the module's policy says to refactorize. ``free``: ``matrix``
     is the whole Jacobian and these (ascending) its free dofs; only the copies' columns
     are taken, not the free-dof matrix (the same entries)."""
@@ -96,12 +108,18 @@ def bordered_factor(base: Factorization, tie: np.ndarray, matrix: sp.csr_matrix,
     new, old = _unchanged_columns(prior, local[copies], c)
     fresh = np.setdiff1d(np.arange(m), new)
     columns, slot = _Columns.for_factor(prior, n, new, old, fresh, 2 * m + 16)
+    halves = getattr(root, "halves", None)
     ctg = np.empty((m, m))  # C^T G: that of the reused columns kept
     ctg[np.ix_(new, new)] = prior.ctg[np.ix_(old, old)] if new.size else 0.0
     if fresh.size:
         g = columns.append(fresh.size)  # the new columns, solved into the buffer
-        _solve_into(root, c[:, fresh].toarray(order="F"), g)  # as PARDISO reads it
-        block = c.T @ np.ascontiguousarray(g)
+        rhs = c[:, fresh].toarray(order="F")  # as PARDISO reads it
+        if halves is not None:  # Y = F C: C^T A^-1 C = Y^T Y
+            halves[0](rhs, out=g)
+            block = (columns.buffer[:, :columns.live].T @ g)[slot]
+        else:
+            _solve_into(root, rhs, g)
+            block = c.T @ np.ascontiguousarray(g)
         ctg[:, fresh], ctg[fresh, :] = block, block.T
     cho = _schur_factor(d - ctg, d) if m else None
     if m and cho is None:
@@ -157,24 +175,38 @@ def restricted(base: Factorization, keep: np.ndarray) -> Factorization | None:
 
 
 def _solve(root, tied, tie, copies, c, cho, g, slot):
-    """``A' x = b`` (module docstring) with ``g`` the live columns of G, ``slot`` each
-    copy's column of it."""
+    """``A' x = b`` (module docstring) with ``g`` the live columns of G (of Y where the root
+    has halves), ``slot`` each copy's column of it."""
+    halves = getattr(root, "halves", None)
+
     def solve(b: np.ndarray) -> np.ndarray:
         b = np.asarray(b, dtype=np.float64)
         one = b.ndim == 1
         b2 = b[:, None] if one else b
-        y = root.solve(np.asarray(tied @ b2))
+        rhs = np.asarray(tied @ b2)
         if not copies.size:
-            x = y[tie]
+            x = root.solve(rhs)[tie]
+        elif halves is not None:  # y = B u, C^T y = Y^T u, w = B (u - Y z)
+            forward, backward = halves
+            u = forward(rhs)
+            z = la.cho_solve(cho, b2[copies] - (g.T @ u)[slot])
+            x = backward(u - g @ _spread(z, slot, g.shape[1]))[tie]
+            x[copies] += z
         else:
+            y = root.solve(rhs)
             z = la.cho_solve(cho, b2[copies] - c.T @ y)
-            spread = np.zeros((g.shape[1], z.shape[1]))  # z on the slots of G's columns
-            spread[slot] = z
-            x = (y - g @ spread)[tie]
+            x = (y - g @ _spread(z, slot, g.shape[1]))[tie]
             x[copies] += z
         return x[:, 0] if one else x
 
     return solve
+
+
+def _spread(z: np.ndarray, slot: np.ndarray, live: int) -> np.ndarray:
+    """``z (m, k)`` on the slots of the buffer's ``live`` columns, zero elsewhere."""
+    out = np.zeros((live, z.shape[1]))
+    out[slot] = z
+    return out
 
 
 class _Columns:

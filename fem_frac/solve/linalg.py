@@ -61,7 +61,12 @@ class Factorization:
     Attributes: ``method`` (backend name), ``n`` (size), ``factor_time`` (seconds spent in
     :func:`factorize`, checks included), ``probe_residual`` (relative residual of the check),
     ``nonzeros`` (entries of the factor where the backend reports them, PARDISO's; else
-    ``None``).
+    ``None``), ``halves``: where the backend does a back-solve in two halves, ``A^-1 =
+    R^T R`` (PARDISO's Cholesky ``P A P^T = L L^T``: ``R b = L^-1 P b``, phase 331, and
+    ``R^T u = P^T L^-T u``, phase 333; the two in turn are its back-solve to the bit), the
+    pair ``(forward, backward)`` of functions of ``(n,)`` or Fortran ``(n, k)`` arrays
+    (``forward`` also takes ``out=``); else ``None``. Since ``b.A^-1 c = (R b).(R c)``,
+    :mod:`fem_frac.solve.bordered` forms its Schur complement from forward halves alone.
     """
 
     def __init__(self, method: str, n: int, solve: Solve):
@@ -71,6 +76,7 @@ class Factorization:
         self.factor_time = 0.0
         self.probe_residual = float("nan")
         self.nonzeros = getattr(solve, "nonzeros", None)
+        self.halves = getattr(solve, "halves", None)
 
     def solve(self, b: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
         """Solve A x = b. ``b``: shape (n,) or (n, k). Returns x of the same shape, float64:
@@ -228,14 +234,21 @@ def _factorize_pardiso(a: sp.csr_matrix) -> Solve:
 
 
 def _pardiso_solve(handle: _PardisoHandle) -> Solve:
-    def solve(b: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
-        b = np.asfortranarray(b)
-        x = np.empty_like(b, order="F") if out is None else out
-        _pardiso_check(handle.call(33, b, x), "back-solve")
-        return x
+    def phase(number: int, stage: str) -> Solve:
+        def run(b: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
+            b = np.asfortranarray(b, dtype=np.float64)
+            x = np.empty_like(b, order="F") if out is None else out
+            _pardiso_check(handle.call(number, b, x), stage)
+            return x
 
+        return run
+
+    solve = phase(33, "back-solve")
     solve.nonzeros = int(handle.iparm[17])  # the factor's, as PARDISO reports them
     solve.writes_into = True  # takes ``out``: PARDISO writes x there (Fortran order)
+    # forward and backward substitution (Factorization.halves), without the diagonal
+    # phase 332: a Cholesky factor (mtype 2) has none
+    solve.halves = (phase(331, "forward substitution"), phase(333, "backward substitution"))
     return solve
 
 
