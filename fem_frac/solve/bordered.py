@@ -44,9 +44,9 @@ old factorization, exactly, and roots the later insertions' bordered factors.
 Policy (:func:`bordered_factor`), deterministic so that a run repeats itself to the bit:
 keep the base while ``G`` holds at most ``SHARE`` (1) times the entries of the base's
 factor (``m <= SHARE nnz(L) / n``, PARDISO reports ``nnz(L)``): a solve then streams
-``G`` once (``Y`` twice) against the factor twice, and ``G`` takes no more memory than the factor (its
-buffer, with columns no longer used, up to about twice; chosen among 0.25, 0.5, 1 and 2 on
-``cases/notched_beam.yaml``, docs/performance.md). Where
+``G`` once (``Y`` twice) against the factor twice, and ``G`` takes no more memory than
+the factor (its buffer, with columns no longer used, up to about twice; chosen among 0.25,
+0.5, 1 and 2 on ``cases/notched_beam.yaml``, docs/performance.md). Where
 the backend does not report ``nnz(L)``, keep it while ``m <= COPIES n^(1/3)`` (2.5: where
 the set-up of all ``m`` columns at once cost half a fresh factorization,
 docs/performance.md). Past it (or where the tie does not cover the base's free dofs, or
@@ -84,8 +84,8 @@ def bordered_factor(base: Factorization, tie: np.ndarray, matrix: sp.csr_matrix,
     """A factorization of ``matrix`` (the new free-dof Jacobian, ``(n', n')``) through
     ``base`` (a :class:`Factorization` of the base mesh's, or a bordered one, whose base is
     then used with the ties composed and whose columns of ``G`` (or ``Y``) are reused
-    where ``C``'s did not change) and ``tie (n',)``: the free dof of ``base``'s matrix each new free dof
-    copies. ``None`` where the module's policy says to refactorize. ``free``: ``matrix``
+    where ``C``'s did not change) and ``tie (n',)``: the free dof of ``base``'s matrix
+    each new free dof copies. ``None`` where the module's policy says to refactorize. ``free``: ``matrix``
     is the whole Jacobian and these (ascending) its free dofs; only the copies' columns
     are taken, not the free-dof matrix (the same entries)."""
     local = np.asarray(tie, dtype=np.int64)
