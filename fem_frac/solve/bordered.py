@@ -85,9 +85,9 @@ def bordered_factor(base: Factorization, tie: np.ndarray, matrix: sp.csr_matrix,
     ``base`` (a :class:`Factorization` of the base mesh's, or a bordered one, whose base is
     then used with the ties composed and whose columns of ``G`` (or ``Y``) are reused
     where ``C``'s did not change) and ``tie (n',)``: the free dof of ``base``'s matrix
-    each new free dof copies. ``None`` where the module's policy says to refactorize. ``free``: ``matrix``
-    is the whole Jacobian and these (ascending) its free dofs; only the copies' columns
-    are taken, not the free-dof matrix (the same entries)."""
+    each new free dof copies. ``None`` where the module's policy says to refactorize.
+    ``free``: ``matrix`` is the whole Jacobian and these (ascending) its free dofs; only the
+    copies' columns are taken, not the free-dof matrix (the same entries)."""
     local = np.asarray(tie, dtype=np.int64)
     root, prior, tie = base, None, local
     if hasattr(base, "tie"):  # compose with the meshes between
