@@ -431,12 +431,15 @@ def smooth(operator, element_stress: np.ndarray) -> np.ndarray:
 
 
 def _rows(a: sp.csr_matrix, start: int, stop: int) -> sp.csr_matrix:
-    """Rows ``start:stop`` of ``a``, its data and indices shared (no copy)."""
+    """Rows ``start:stop`` of ``a``, its data and indices shared (no copy: given to the
+    constructor, views of less than half of ``a``'s arrays would be copied)."""
     if start == 0 and stop == a.shape[0]:
         return a
     lo, hi = a.indptr[start], a.indptr[stop]
-    return sp.csr_matrix((a.data[lo:hi], a.indices[lo:hi], a.indptr[start:stop + 1] - lo),
-                         shape=(stop - start, a.shape[1]))
+    block = sp.csr_matrix((stop - start, a.shape[1]), dtype=a.dtype)
+    block.indptr = a.indptr[start:stop + 1] - lo
+    block.indices, block.data = a.indices[lo:hi], a.data[lo:hi]
+    return block
 
 
 def principal_stress(element_stress: np.ndarray, exact_above: float | None = None
