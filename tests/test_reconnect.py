@@ -109,3 +109,18 @@ def test_reconnected_mass_equals_a_fresh_assembly(distortion):
         assert abs(mass - fresh).max() <= 10 * np.finfo(float).eps * scale
         np.testing.assert_array_equal(mass.indptr, fresh.indptr)
         np.testing.assert_array_equal(mass.indices, fresh.indices)
+
+
+@pytest.mark.parametrize("order", [1, 2])
+def test_a_reconnected_space_reuses_the_old_geometry_to_the_bit(order):
+    """``build_space(new, like=old)``: the old tets' mapping, and every array of the space
+    the same bits as built afresh on the cracked mesh."""
+    for old, new, _ in _cracked(0.15):
+        old_space = build_space(old, order)
+        reused, fresh = build_space(new, order, like=old_space), build_space(new, order)
+        assert reused.basis.mapping is old_space.basis.mapping
+        assert fresh.basis.mapping is not old_space.basis.mapping
+        np.testing.assert_array_equal(reused.basis.dx, fresh.basis.dx)
+        np.testing.assert_array_equal(reused.gradients(), fresh.gradients())
+        np.testing.assert_array_equal(reused.element_dofs, fresh.element_dofs)
+        np.testing.assert_array_equal(reused.node_points, fresh.node_points)

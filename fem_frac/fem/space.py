@@ -88,15 +88,24 @@ def skfem_mesh(mesh: Mesh, order: int):
     return replace(quadratic, doflocs=doflocs)
 
 
-def build_space(mesh: Mesh, order: int) -> Space:
-    """The vector P``order`` space on ``mesh`` with its quadrature (see ``INTORDER``)."""
-    from skfem import CellBasis, ElementTetP1, ElementTetP2
+def build_space(mesh: Mesh, order: int, like: Space | None = None) -> Space:
+    """The vector P``order`` space on ``mesh`` with its quadrature (see ``INTORDER``).
+    ``like``: a space of the same order on a mesh whose tets ``mesh`` holds at the same
+    places, in the same order, each with its corners in the same order (a crack's
+    reconnection, :func:`~fem_frac.fem.reconnect.changed_tets`): where its geometry is
+    affine, its mapping (each tet's Jacobian and its inverse) serves unchanged, the same
+    bits, instead of being computed again."""
+    from skfem import CellBasis, ElementTetP1, ElementTetP2, MeshTet1
 
     if order not in INTORDER:
         raise ValueError(f"element order must be 1 or 2, got {order}")
     m = skfem_mesh(mesh, order)
     element = ElementTetP1() if order == 1 else ElementTetP2()
-    basis = CellBasis(m, element, intorder=INTORDER[order])
+    mapping = None
+    if like is not None and like.order == order and type(m) is MeshTet1 \
+            and type(like.skmesh) is MeshTet1:
+        mapping = like.basis.mapping
+    basis = CellBasis(m, element, mapping=mapping, intorder=INTORDER[order])
     scalar = basis.element_dofs.T  # (n_tets, n_local)
     element_dofs = (3 * scalar[:, :, None] + np.arange(3)).reshape(scalar.shape[0], -1)
     return Space(

@@ -87,8 +87,9 @@ def discretize(recipe: Recipe, mesh: Mesh, timer: StageTimer, strict: bool = Tru
     operators are then updated rather than rebuilt where that is exact
     (:mod:`fem_frac.fem.reconnect`)."""
     changed = _changed(mesh, previous)
-    carried = None if changed is None else previous[0].problem.selections
-    space, materials, problem = model_on(recipe, mesh, timer, strict, carried)
+    carried, like = (None, None) if changed is None else (previous[0].problem.selections,
+                                                          previous[0].space)
+    space, materials, problem = model_on(recipe, mesh, timer, strict, carried, like)
     if strict:
         check_model(recipe, space, materials, problem)
     # per-element properties follow the elements
@@ -206,12 +207,14 @@ def _initial_cohesive_stiffness(ops: Operators) -> sp.csr_matrix | None:
 
 
 def model_on(recipe: Recipe, mesh: Mesh, timer: StageTimer, strict: bool = True,
-             carried: tuple | None = None) -> tuple[Space, ElementMaterials, Problem]:
+             carried: tuple | None = None, like: Space | None = None
+             ) -> tuple[Space, ElementMaterials, Problem]:
     """Function space, per-element materials, supports and loads on ``mesh`` (``carried``:
     the selections of the mesh a crack reconnected into this one, whose faces are taken
-    at their rows: :func:`~fem_frac.solve.problem.build_problem`)."""
+    at their rows: :func:`~fem_frac.solve.problem.build_problem`; ``like``: that mesh's
+    space, whose geometry :func:`~fem_frac.fem.space.build_space` reuses)."""
     with timer("space"):
-        space = build_space(mesh, recipe.order)
+        space = build_space(mesh, recipe.order, like)
     with timer("loads"):
         materials = element_materials(recipe.material, list(recipe.regions), mesh)
         problem = build_problem(space, list(recipe.boundary_conditions), recipe.body_force,
