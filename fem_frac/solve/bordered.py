@@ -186,7 +186,7 @@ def _solve(root, tied, tie, copies, c, cho, g, slot):
         rhs = np.asarray(tied @ b2)
         if not copies.size:
             x = root.solve(rhs)[tie]
-        elif halves is not None:  # y = B u, C^T y = Y^T u, w = B (u - Y z)
+        elif halves is not None:  # y = R^T u, C^T y = Y^T u, w = R^T (u - Y z)
             forward, backward = halves
             u = forward(rhs)
             z = la.cho_solve(cho, b2[copies] - (g.T @ u)[slot])
