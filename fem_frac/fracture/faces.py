@@ -139,15 +139,21 @@ def _kept_pairs(pairs, old: np.ndarray, tets: np.ndarray,
     n1, g1 = _sorted_face(tets, r1[touched])
     n2, g2 = _sorted_face(tets, r2[touched])
     apart = np.any(g1 != g2, axis=1)
-    keep = np.ones(r1.size, dtype=bool)
-    keep[touched[apart]] = False
-    out = r1[keep], r2[keep], l1[keep], l2[keep]
+    out = tuple(_without(a, touched[apart]) for a in pairs)
     # the touched pairs kept, at their places among the kept ones: new local corners
     stay = touched[~apart]
     at = stay - np.searchsorted(touched[apart], stay)
     out[2][at], out[3][at] = n1[~apart], n2[~apart]
     remember(_SINGLE, out[0], True)  # a subset of pairs whose rows are each in one
     return out
+
+
+def _without(a: np.ndarray, rows: np.ndarray) -> np.ndarray:
+    """A copy of ``a`` without its rows ``rows`` (sorted, unique; a few): the stretches
+    between them joined (a boolean mask would be a pass over every row)."""
+    ends = rows.tolist()
+    starts = [0] + [r + 1 for r in ends]
+    return np.concatenate([a[s:e] for s, e in zip(starts, ends + [a.shape[0]], strict=True)])
 
 
 def _sorted_face(tets: np.ndarray, rows: np.ndarray):
