@@ -185,7 +185,7 @@ def update_operator(operator: sp.csr_matrix, points: np.ndarray, tets: np.ndarra
         # an opened face hold one), and only loses tets: the new one of such a row is the
         # part of its old one still reachable from the row's tet; the rows that lost none
         # are kept as they are
-        rows = np.flatnonzero(operator @ (at >= 0).any(axis=1).astype(float))
+        rows = np.flatnonzero(smooth(operator, (at >= 0).any(axis=1)[None].astype(float)))
         fresh = _reachable_within(operator, face_neighbours(tets), rows)
         lost = np.diff(fresh.indptr) < np.diff(operator.indptr)[rows]
         rows, fresh = rows[lost], fresh[lost]

@@ -180,7 +180,7 @@ def _topology(config: schema.Fracture, mesh: Mesh, smoothing, strict: bool,
     if front is not None and config.cohesive_law.front_stress == "element":
         own = front[mesh.tets].any(axis=1)  # the tets at a crack front
     return _Topology(mesh, smoothing, protected, star(mesh.tets, mesh.n_points), volumes,
-                     float(np.median(pattern @ volumes)), on_crack,
+                     float(np.median(smooth(pattern, volumes[None])[0])), on_crack,
                      np.zeros(mesh.n_points, dtype=bool), front, near, normals,
                      planes=planes, own=own, centroids=centroids)
 
