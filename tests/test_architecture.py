@@ -23,7 +23,7 @@ from pathlib import Path
 PACKAGE = Path(__file__).resolve().parents[1] / "fem_frac"
 
 LAYERS = [
-    ("errors", 0), ("timing", 0), ("config", 0),
+    ("errors", 0), ("timing", 0), ("threads", 0), ("config", 0),
     ("mesh", 1), ("fem", 1), ("verify", 1),
     ("writers", 2), ("plasticity", 2), ("cohesive", 2),
     ("solve", 3),
