@@ -127,8 +127,7 @@ class ImplicitStepper:
 
     def jacobian(self, stiffness: sp.csr_matrix) -> sp.csr_matrix:
         s, ops = self.scheme, self.ops
-        # (1 + 0) K is K to the bit: no copy of it for alpha = 0
-        j = stiffness if s.alpha == 0.0 else (1.0 + s.alpha) * stiffness
+        j = stiffness if s.alpha == 0.0 else (1.0 + s.alpha) * stiffness  # no copy of K
         if self.inertia:
             j = j + s.c_mass * ops.mass
             if ops.damping is not None:
