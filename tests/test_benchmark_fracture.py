@@ -17,3 +17,19 @@ def test_the_insertion_batch_benchmark_runs():
     for row in ("**floor**", "**open (stage.open)**", "**rebuild (rediscretize)**",
                 "**refactorization**", "**support check**", "**batch warm**"):
         assert row in table
+
+
+def test_the_pardiso_halves_benchmark_runs():
+    """benchmarks/pardiso_halves.py on a tiny bar: its table, and its check that forward
+    then backward substitution is the back-solve to the bit (an assertion in the script)."""
+    import pytest
+
+    from fem_frac.solve.linalg import available_methods
+
+    if "pardiso" not in available_methods():
+        pytest.skip("PARDISO is not installed here")
+    script = SCRIPT.parent / "pardiso_halves.py"
+    out = subprocess.run([sys.executable, str(script), "--tets", "2000", "--repeats", "1",
+                          "--columns", "1", "3"], capture_output=True, text=True, timeout=300)
+    assert out.returncode == 0, out.stderr[-2000:]
+    assert "| 3 | " in out.stdout and "forward (331)" in out.stdout
