@@ -8,8 +8,8 @@ element, and every element goes through the same code.
 Below :data:`MIN_ITEMS` items it is one call: handing a range to a thread costs ~0.1 ms,
 more than it saves on a small mesh, so every run below that size (all of ``cases/``) keeps
 one thread and its CPU time. Threads: the CPUs this process may run on, at most
-:data:`MAX_THREADS`, and at most ``OMP_NUM_THREADS`` where that is set (as MKL's PARDISO
-threads follow it; a sweep's workers set it to 1).
+:data:`MAX_THREADS`, and at most ``OMP_NUM_THREADS`` where that is set (MKL's PARDISO
+threads follow it too).
 """
 
 from __future__ import annotations
@@ -21,8 +21,9 @@ from typing import TypeVar
 T = TypeVar("T")
 
 # Items (elements, tensors, rows) from which the work is split over the threads: at 94k
-# tets the split saves 40-60 ms of a 100-130 ms eigh and ~10 ms of a 20-25 ms smoothing
-# product (benchmarks/fracture.py); at 15k tets it would save well under a millisecond.
+# tets the split took the eigh from 85 to 47-73 ms and the smoothing product from 36 to
+# 14-20 ms on two cores (benchmarks/fracture.py; docs/performance.md, "Insertions, seventh
+# pass"); at 15k tets it would save a few milliseconds at most.
 MIN_ITEMS = 32_768
 MAX_THREADS = 8
 
@@ -47,6 +48,8 @@ def _executor(workers: int):
     if _pool is None or _pool[0] != os.getpid() or _pool[1] < workers:
         from concurrent.futures import ThreadPoolExecutor
 
+        if _pool is not None and _pool[0] == os.getpid():
+            _pool[2].shutdown(wait=False)  # a smaller one (OMP_NUM_THREADS rose)
         _pool = (os.getpid(), workers,
                  ThreadPoolExecutor(workers, thread_name_prefix="fem-frac"))
     return _pool[2]

@@ -114,7 +114,7 @@ def bordered_factor(base: Factorization, tie: np.ndarray, matrix: sp.csr_matrix,
     if fresh.size:
         g = columns.append(fresh.size)  # the new columns, solved into the buffer
         rhs = c[:, fresh].toarray(order="F")  # as PARDISO reads it
-        if halves is not None:  # Y = F C: C^T A^-1 C = Y^T Y
+        if halves is not None:  # Y = R C: C^T A^-1 C = Y^T Y
             halves[0](rhs, out=g)
             block = (columns.buffer[:, :columns.live].T @ g)[slot]
         else:
