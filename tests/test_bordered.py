@@ -72,7 +72,7 @@ def chain():
 @pytest.mark.parametrize("method", available_methods())
 def test_solves_as_the_new_stiffness_does_through_a_chain_of_insertions(chain, monkeypatch,
                                                                          method):
-    """Through the root's forward halves (PARDISO: Y = F C) and through its whole solves
+    """Through the root's forward halves (PARDISO: Y = R C) and through its whole solves
     (the other backends: G = A^-1 C) alike."""
     (a0, _), (a1, tie1), (a2, tie2) = chain
     monkeypatch.setattr(bordered, "SHARE", 1e9)  # the policy aside: keep the base here

@@ -89,7 +89,7 @@ def test_solves_into_a_given_array(clamped, method):
 @pytest.mark.skipif("pardiso" not in METHODS, reason="PARDISO is not installed here")
 def test_pardiso_halves_are_its_back_solve_and_a_gram_factor(clamped):
     """Forward then backward substitution is the back-solve to the bit, and the forward
-    half F (A^-1 = F^T F) gives the products b.A^-1.c as F b . F c."""
+    half R (A^-1 = R^T R) gives the products b.A^-1.c as R b . R c."""
     fact = factorize(clamped, "pardiso")
     forward, backward = fact.halves
     rng = np.random.default_rng(4)
