@@ -5,9 +5,10 @@ they run, so a large mesh's elements, split into one contiguous range per core, 
 threads at once. Each element's result is the same bits as in one call: no sum crosses an
 element, and every element goes through the same code.
 
-Below :data:`MIN_ITEMS` items it is one call: handing a range to a thread costs ~0.1 ms,
-more than it saves on a small mesh, so every run below that size (all of ``cases/``) keeps
-one thread and its CPU time. Threads: the CPUs this process may run on, at most
+Below :data:`MIN_ITEMS` items it is one call. Splitting shortens the wall time only: a
+thread's CPU time is still counted, and handing ranges over costs 0.08 ms a call (measured on
+2 cores), so a small mesh keeps one thread and its CPU time (every case of ``cases/`` is
+below the threshold). Threads: the CPUs this process may run on, at most
 :data:`MAX_THREADS`, and at most ``OMP_NUM_THREADS`` where that is set (MKL's PARDISO
 threads follow it too).
 """
@@ -22,8 +23,9 @@ T = TypeVar("T")
 
 # Items (elements, tensors, rows) from which the work is split over the threads: at 94k
 # tets the split took the eigh from 85 to 47-73 ms and the smoothing product from 36 to
-# 14-20 ms on two cores (benchmarks/fracture.py; docs/performance.md, "Insertions, seventh
-# pass"); at 15k tets it would save a few milliseconds at most.
+# 14-20 ms of wall time on two cores (benchmarks/fracture.py; docs/performance.md,
+# "Insertions, seventh pass"). The threshold lies above every shipped case (the largest has
+# 14,638 tets), whose figures are CPU time, which splitting does not lower.
 MIN_ITEMS = 32_768
 MAX_THREADS = 8
 
