@@ -6,6 +6,7 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
+from fem_frac.rigid import contact
 from fem_frac.rigid.body import (
     angular_velocity,
     exp_map,
@@ -20,6 +21,7 @@ from fem_frac.rigid.contact import Plane, find_contacts, resolve, signed_distanc
 G = 9.81
 GRAVITY = np.array([0.0, 0.0, -G])
 UP = np.array([0.0, 0.0, 1.0])
+EPS = np.finfo(float).eps
 CORNERS = np.array(list(itertools.product([-1.0, 1.0], repeat=3)))
 
 
@@ -182,3 +184,62 @@ def test_plane_rejects_bad_parameters():
     for normal, e, mu in [((0, 0, 2.0), 0.5, 0.1), (UP, 1.5, 0.1), (UP, 0.5, -0.1)]:
         with pytest.raises(ValueError):
             Plane(np.zeros(3), np.asarray(normal, dtype=float), e, mu)
+
+
+def _random_spd2(rng):
+    """A random symmetric positive definite 2 x 2 matrix, anisotropic up to 1e6."""
+    q, _ = np.linalg.qr(rng.normal(size=(2, 2)))
+    return q @ np.diag(10.0 ** rng.uniform(-3, 3, size=2)) @ q.T
+
+
+def test_closed_form_eigen_pairs_match_lapack():
+    """_eigen2 against numpy's eigh: the same values, orthonormal eigenvectors, k q = q w;
+    diagonal and repeated values included."""
+    rng = np.random.default_rng(7)
+    matrices = [_random_spd2(rng) for _ in range(200)]
+    matrices += [np.diag([2.0, 1.0]), np.diag([1.0, 2.0]), np.eye(2) * 3.0,
+                 np.array([[1.0, 1e-9], [1e-9, 1.0]])]
+    for k in matrices:
+        w0, w1, q00, q01, q10, q11 = contact._eigen2(k.tolist())
+        q, w = np.array([[q00, q01], [q10, q11]]), np.array([w0, w1])
+        scale = np.abs(k).max()
+        assert np.allclose(w, np.linalg.eigvalsh(k), rtol=0, atol=8 * EPS * scale)
+        assert np.allclose(q.T @ q, np.eye(2), rtol=0, atol=8 * EPS)
+        assert np.allclose(k @ q, q * w, rtol=0, atol=8 * EPS * scale)
+
+
+def test_friction_impulse_is_the_least_kinetic_energy_in_the_disc():
+    """The tangential impulse minimizes x.k.x / 2 + f.x over |x| <= radius: inside, the
+    unconstrained minimum; on the rim, no point of the rim (sampled at 20,000 angles, then
+    refined) is lower, and k x + f is opposite to x (maximum dissipation)."""
+    rng = np.random.default_rng(11)
+    for _ in range(100):
+        k = _random_spd2(rng)
+        f = rng.normal(size=2) * 10.0 ** rng.uniform(-3, 3)
+        free = -np.linalg.solve(k, f)
+        radius = float(np.linalg.norm(free)) * rng.choice([0.1, 0.5, 0.99, 2.0])
+        x = np.array(contact._friction_impulse(k.tolist(), [], f, radius))
+
+        def energy(y, k=k, f=f):
+            return 0.5 * np.einsum("...i,ij,...j->...", y, k, y) + y @ f
+
+        if radius >= np.linalg.norm(free):
+            assert np.allclose(x, free, rtol=1e-12, atol=0)
+            continue
+        assert np.isclose(np.linalg.norm(x), radius, rtol=1e-12)
+        angle = np.linspace(0.0, 2 * np.pi, 20_000, endpoint=False)
+        rim = radius * np.stack([np.cos(angle), np.sin(angle)], axis=1)
+        best = angle[np.argmin(energy(rim))]
+        fine = best + np.linspace(-4e-4, 4e-4, 20_001)
+        rim = radius * np.stack([np.cos(fine), np.sin(fine)], axis=1)
+        scale = np.abs(energy(rim)).max()
+        assert energy(x) <= energy(rim).min() + 1e-10 * scale
+        velocity = k @ x + f
+        assert abs(velocity[0] * x[1] - velocity[1] * x[0]) <= 1e-9 * np.linalg.norm(
+            velocity) * radius
+        assert velocity @ x <= 0.0
+
+
+def test_friction_impulse_without_a_normal_impulse_is_zero():
+    k = np.array([[2.0, 0.3], [0.3, 1.0]])
+    assert contact._friction_impulse(k.tolist(), [], np.array([1.0, -2.0]), 0.0) == (0.0, 0.0)

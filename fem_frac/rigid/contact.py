@@ -39,6 +39,7 @@ complete, since a convex body first meets a plane at a vertex.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -143,21 +144,20 @@ def _jacobian(contacts: Contacts) -> np.ndarray:
     return np.hstack([d, np.cross(arm, d)])
 
 
-def _friction_impulse(k, entries, eigen, f, radius):
+def _friction_impulse(entries, eigen, f, radius):
     """The tangential impulse ``x`` (two numbers) minimizing ``x.k.x / 2 + f.x`` over
     ``|x| <= radius``.
 
-    k: (2, 2) tangential effective mass (inverse), SPD; f: (2,) tangential velocity without
-    this friction: the kinetic energy over the Coulomb disc. Inside, the point sticks; on the
-    rim it slides, ``k x + f = -sigma x``: friction opposes the sliding after the impulse
-    (maximum dissipation). A radial clamp of the sticking impulse, or friction along ``-f``,
-    misses this minimum when ``k`` is anisotropic and stalls Gauss-Seidel short of sticking.
-    entries: ``k.tolist()``; eigen: a list that keeps ``eigh(k)`` once made (Gauss-Seidel
-    calls this with the same ``k`` every sweep).
+    k: (2, 2) tangential effective mass (inverse), SPD, given as ``entries = k.tolist()``;
+    f: (2,) tangential velocity without this friction: the kinetic energy over the Coulomb
+    disc. Inside, the point sticks; on the rim it slides, ``k x + f = -sigma x``: friction
+    opposes the sliding after the impulse (maximum dissipation). A radial clamp of the
+    sticking impulse, or friction along ``-f``, misses this minimum when ``k`` is
+    anisotropic and stalls Gauss-Seidel short of sticking. eigen: a list that keeps
+    :func:`_eigen2` of ``k`` once made (Gauss-Seidel calls this with the same ``k`` every
+    sweep). All in Python floats: numpy's per-call overhead on two numbers is most of a
+    contact step otherwise.
     """
-    # the sticking impulse, 2 x 2 by hand in Python floats: numpy's per-call overhead is
-    # most of a contact step otherwise (the same operations as on numpy scalars, so the
-    # same bits)
     (k00, k01), (k10, k11) = entries
     f0, f1 = float(f[0]), float(f[1])
     det = k00 * k11 - k01 * k10
@@ -169,18 +169,38 @@ def _friction_impulse(k, entries, eigen, f, radius):
     # secular equation |(k + sigma)^-1 f| = radius; Newton on 1/|x(sigma)| - 1/radius, which
     # is nearly linear in sigma, converges from sigma = 0 monotonically (More & Sorensen 1983)
     if not eigen:
-        eigen.append(np.linalg.eigh(k))
-    w, q = eigen[0]
-    g = q.T @ f
+        eigen.append(_eigen2(entries))
+    w0, w1, q00, q01, q10, q11 = eigen[0]
+    g0, g1 = q00 * f0 + q10 * f1, q01 * f0 + q11 * f1  # q^T f
     sigma = 0.0
     for _ in range(50):
-        y = g / (w + sigma)
-        norm = float(np.sqrt(y @ y))
-        step = (1.0 / radius - 1.0 / norm) * norm**3 / float(y @ (y / (w + sigma)))
+        d0, d1 = w0 + sigma, w1 + sigma
+        y0, y1 = g0 / d0, g1 / d1
+        norm = math.sqrt(y0 * y0 + y1 * y1)
+        step = (1.0 / radius - 1.0 / norm) * norm**3 / (y0 * y0 / d0 + y1 * y1 / d1)
         sigma = max(sigma + step, 0.0)
-        if abs(step) <= 1e-15 * (sigma + w[-1]):
+        if abs(step) <= 1e-15 * (sigma + w1):
             break
-    return -q @ (g / (w + sigma))
+    y0, y1 = g0 / (w0 + sigma), g1 / (w1 + sigma)
+    return -(q00 * y0 + q01 * y1), -(q10 * y0 + q11 * y1)
+
+
+def _eigen2(entries):
+    """``(w0, w1, q00, q01, q10, q11)``: the eigenvalues ``w0 <= w1`` of the symmetric 2 x 2
+    matrix ``entries`` (its lower triangle, as LAPACK's ``eigh``) and the orthonormal
+    eigenvectors, the columns of ``q``; in closed form (Python floats)."""
+    (p, _), (s, r) = entries
+    half = 0.5 * (p - r)
+    d = math.hypot(half, s)
+    w1 = 0.5 * (p + r) + d
+    w0 = 0.5 * (p + r) - d
+    if d == 0.0:
+        return w0, w1, 1.0, 0.0, 0.0, 1.0
+    # the eigenvector of w1 from the better conditioned of the two rows of (k - w1)
+    u, v = (half + d, s) if half >= 0.0 else (s, d - half)
+    n = math.hypot(u, v)
+    u, v = u / n, v / n
+    return w0, w1, -v, u, u, v
 
 
 def _sequential_impulses(a, b, target, friction, iterations=_ITERATIONS, polish=False,
@@ -202,9 +222,16 @@ def _sequential_impulses(a, b, target, friction, iterations=_ITERATIONS, polish=
         for j, row, pivot, rest, sliding in points:
             lam[j] = max(lam[j] + (rest - row @ lam) / pivot, 0.0)
             if sliding is not None:
-                mu, rows, k, entries, b_t, lam_t, eigen = sliding
-                free = b_t + rows @ lam - k @ lam_t
-                lam_t[:] = _friction_impulse(k, entries, eigen, free, mu * lam[j])
+                mu, rows, entries, b_t, lam_t, eigen = sliding
+                radius = mu * lam[j]
+                if radius <= 0.0:  # no normal impulse, no friction
+                    lam_t[:] = 0.0
+                    continue
+                # the tangential velocity without this point's friction, in Python floats
+                (k00, k01), (k10, k11) = entries
+                (r0, r1), (l0, l1) = (rows @ lam).tolist(), lam_t.tolist()
+                free = (b_t[0] + r0 - (k00 * l0 + k01 * l1), b_t[1] + r1 - (k10 * l0 + k11 * l1))
+                lam_t[:] = _friction_impulse(entries, eigen, free, radius)
         # stop on the contact velocities, not the impulses: with more points than the body
         # has freedoms the impulses are not unique and may wander in that null space
         velocities = b + a @ lam
@@ -221,17 +248,15 @@ def _sequential_impulses(a, b, target, friction, iterations=_ITERATIONS, polish=
 def _sweep_terms(a, b, target, friction, lam):
     """What a Gauss-Seidel sweep reads of each point i (row j = 3 i), computed once: ``(j,
     a[j], a[j, j], target[i] - b[j], friction terms or None)``, the friction terms ``(mu,
-    a[t], k = a[t, t], k.tolist(), b[t], lam[t], a cache for eigh(k))`` with ``t`` its two
-    tangential rows. Views of the same arrays and the same operations as indexing them in
-    the sweep, so the same bits."""
+    a[t], a[t, t].tolist(), b[t].tolist(), lam[t], a cache for _eigen2(a[t, t]))`` with
+    ``t`` its two tangential rows (``lam[t]`` a view: the sweep writes through it)."""
     terms = []
     for i in range(len(target)):
         j = 3 * i
         sliding = None
         if friction[i] > 0.0:
             t = slice(j + 1, j + 3)
-            k = a[t, t]
-            sliding = (friction[i], a[t], k, k.tolist(), b[t], lam[t], [])
+            sliding = (friction[i], a[t], a[t, t].tolist(), b[t].tolist(), lam[t], [])
         terms.append((j, a[j], a[j, j], target[i] - b[j], sliding))
     return terms
 
@@ -251,20 +276,24 @@ def _polish(a, b, lam, target, friction, scale):
     tangential = np.linalg.norm(pts[:, 1:], axis=1)
     sliding = active & (friction > 0.0) & (tangential >= friction * pts[:, 0] * (1 - 1e-9))
     sticking = active & (friction > 0.0) & ~sliding
-    # the unknowns: one column of lam per unknown
+    # the unknowns: the entries of lam at ``rows``, a sliding point's friction following
+    # its normal impulse (``lam_t = mu lam_n s``)
     rows_n, rows_t = 3 * np.flatnonzero(active), 3 * np.flatnonzero(sticking)
     rows = np.sort(np.concatenate([rows_n, rows_t + 1, rows_t + 2]))
-    basis = np.zeros((3 * c, rows.size))
-    basis[rows, np.arange(rows.size)] = 1.0
     slide = np.flatnonzero(sliding)
     direction = pts[slide, 1:] / tangential[slide, None]
     col = np.searchsorted(rows, 3 * slide)
-    basis[3 * slide + 1, col] = friction[slide] * direction[:, 0]
-    basis[3 * slide + 2, col] = friction[slide] * direction[:, 1]
+    follow = friction[slide, None] * direction  # (sliding, 2)
+    matrix = a[np.ix_(rows, rows)]
+    matrix[:, col] += (a[np.ix_(rows, 3 * slide + 1)] * follow[:, 0]
+                       + a[np.ix_(rows, 3 * slide + 2)] * follow[:, 1])
     rhs = np.zeros(3 * c)
     rhs[0::3] = target
-    x = np.linalg.lstsq((a @ basis)[rows], (rhs - b)[rows], rcond=None)[0]
-    exact = basis @ x
+    x = np.linalg.lstsq(matrix, (rhs - b)[rows], rcond=None)[0]
+    exact = np.zeros(3 * c)
+    exact[rows] = x
+    exact[3 * slide + 1] = follow[:, 0] * x[col]
+    exact[3 * slide + 2] = follow[:, 1] * x[col]
     v = (b + a @ exact).reshape(c, 3)
     pts = exact.reshape(c, 3)
     slack = _ROUND_OFF * scale
