@@ -11,9 +11,12 @@ from __future__ import annotations
 
 import weakref
 from dataclasses import dataclass
+from functools import cached_property
+from itertools import chain
 
 import numpy as np
 from scipy.spatial import cKDTree
+from scipy.spatial.distance import cdist
 
 from ..mesh.mesh import (
     TET_EDGES,
@@ -29,6 +32,14 @@ from .collide import hull
 # A point counts as inside a tet when its barycentric coordinates are all above this
 # (round-off of the coordinates of a point on a face shared by two tets).
 _INSIDE = -1e-12
+
+# The relative slack of the candidate bounds (:func:`_near`): their distances' round-off
+# never leaves out a triangle or tet that holds the answer.
+_SLACK = 1e-9
+
+# Up to this many point-cell pairs, candidates come from the dense distance matrix (cdist
+# on tens of thousands of entries is cheaper than a tree's queries and their lists).
+_DENSE = 1 << 16
 
 
 @dataclass(frozen=True, eq=False)
@@ -66,6 +77,22 @@ class Solid:
     faces: np.ndarray
     surface: np.ndarray
     hull_excess: float = 0.0
+
+    # its geometry for the queries, kept with it (a Solid never changes)
+    @cached_property
+    def face_cells(self) -> Cells:
+        """The :class:`Cells` of its exterior faces."""
+        return cells(self.vertices, self.faces)
+
+    @cached_property
+    def tet_cells(self) -> Cells:
+        """The :class:`Cells` of its tets."""
+        return cells(self.vertices, self.tets)
+
+    @cached_property
+    def normals(self) -> np.ndarray:
+        """``(f, 3)`` the outward unit normals of its exterior faces."""
+        return face_normals(self.vertices, self.faces)
 
 
 _SOLIDS: dict[int, Solid] = {}
@@ -112,8 +139,9 @@ def locate_in_solid(points: np.ndarray, shape: Solid):
     """Points ``(p, 3)`` (body frame) against a :class:`Solid`: ``(inside (p,), face (p,),
     weights (p, 3), distance (p,))``, inside its tets or not, the nearest exterior face,
     the barycentric weights of its closest point and the distance to it."""
-    inside = inside_tets(points, shape.vertices, shape.tets)
-    face, weights, distance = nearest_faces(points, shape.vertices, shape.faces)
+    inside = inside_tets(points, shape.vertices, shape.tets, shape.tet_cells)
+    face, weights, distance = nearest_faces(points, shape.vertices, shape.faces,
+                                            shape.face_cells)
     return inside, face, weights, distance
 
 
@@ -149,7 +177,7 @@ def solid_gaps(x: np.ndarray, body: RigidBody, shape: Solid) -> tuple[np.ndarray
     apart = (~inside) & (distance > 0.0)
     normal = np.where(apart[:, None],
                       (local - closest) / np.where(apart, distance, 1.0)[:, None],
-                      face_normals(shape.vertices, shape.faces)[face])
+                      shape.normals[face])
     return np.where(inside, -distance, distance), normal @ r.T
 
 
@@ -171,18 +199,79 @@ def pairs_within(a: np.ndarray, b: np.ndarray, radius) -> tuple[np.ndarray, np.n
     return pairs["i"].astype(np.int64), pairs["j"].astype(np.int64)
 
 
-def inside_tets(points: np.ndarray, x: np.ndarray, tets: np.ndarray) -> np.ndarray:
-    """``(p,)``: whether each of ``points (p, 3)`` lies in one of the tets ``(e, 4)`` with
-    vertices at ``x (n, 3)``. Candidates by a cKDTree on the centroids (every tet whose
-    centroid is within its largest centroid-to-vertex distance), then barycentric
-    coordinates."""
-    corners = x[tets]
+def _norms(v: np.ndarray) -> np.ndarray:
+    """``(...)`` the lengths of the vectors ``v (..., 3)``: np.linalg.norm's, to the bit
+    (the same sum, in the same order), at a quarter of its cost."""
+    return np.sqrt(v[..., 0] * v[..., 0] + v[..., 1] * v[..., 1] + v[..., 2] * v[..., 2])
+
+
+@dataclass(frozen=True, eq=False)
+class Cells:
+    """Triangles ``(f, 3, 3)`` or tets ``(e, 4, 3)`` (their ``corners``) ready for the
+    queries of points against them: ``centroid (n, 3)``, ``reach (n,)`` each one's largest
+    centroid-to-corner distance (none of its points lies farther from its centroid). Built
+    per call for the deformed finite elements, once for a :class:`Solid`."""
+
+    corners: np.ndarray
+    centroid: np.ndarray
+    reach: np.ndarray
+
+    @cached_property
+    def tree(self) -> cKDTree:
+        """A cKDTree on the centroids."""
+        return cKDTree(self.centroid)
+
+    @cached_property
+    def rank(self) -> np.ndarray:
+        """``(n,)`` each centroid's place in the tree's order: the order in which a
+        traversal of the tree meets them, the tie-break between faces at equal distance
+        (kept from a search by ``pairs_within``)."""
+        rank = np.empty(len(self.centroid), dtype=np.int64)
+        rank[self.tree.indices] = np.arange(len(self.centroid))
+        return rank
+
+
+def cells(x: np.ndarray, vertices: np.ndarray) -> Cells:
+    """The :class:`Cells` of the triangles or tets ``vertices (n, 3 | 4)``, corners at
+    ``x``."""
+    corners = x[vertices]
     centroid = corners.mean(axis=1)
-    reach = float(np.linalg.norm(corners - centroid[:, None], axis=2).max(initial=0.0))
-    i, e = pairs_within(points, centroid, reach)
+    reach = _norms(corners - centroid[:, None]).max(axis=1, initial=0.0)
+    return Cells(corners, centroid, reach)
+
+
+def _near(points: np.ndarray, shape: Cells, bound=None) -> tuple[np.ndarray, np.ndarray]:
+    """``(i, j)``, ascending in ``i``: every point ``points[i]`` within ``r[i] + reach[j]``
+    of the centroid of cell ``j`` (a relative ``_SLACK`` more, for round-off); ``r`` 0, or
+    ``bound(k)`` of each point's nearest centroid ``k`` when given. One bound per point: a
+    far point tests no more cells than its own neighbourhood holds. Small sets by the dense
+    distance matrix (cheaper than a tree's queries and their lists), large ones by the
+    tree."""
+    if len(points) * len(shape.reach) <= _DENSE:
+        apart = cdist(points, shape.centroid)
+        r = 0.0 if bound is None else bound(apart.argmin(axis=1))[:, None]
+        return np.nonzero(apart <= (r + shape.reach) * (1.0 + _SLACK))
+    r = np.zeros(len(points)) if bound is None else bound(shape.tree.query(points)[1])
+    found = shape.tree.query_ball_point(points, (r + shape.reach.max()) * (1.0 + _SLACK),
+                                        return_sorted=False)
+    i = np.repeat(np.arange(len(points)), np.fromiter(map(len, found), np.int64, len(found)))
+    j = np.fromiter(chain.from_iterable(found), np.int64, len(i))
+    keep = _norms(points[i] - shape.centroid[j]) <= (r[i] + shape.reach[j]) * (1.0 + _SLACK)
+    return i[keep], j[keep]
+
+
+def inside_tets(points: np.ndarray, x: np.ndarray, tets: np.ndarray,
+                shape: Cells | None = None) -> np.ndarray:
+    """``(p,)``: whether each of ``points (p, 3)`` lies in one of the tets ``(e, 4)`` with
+    vertices at ``x (n, 3)`` (``shape``: their :class:`Cells`, when kept). Candidates: the
+    tets whose centroid is within their own reach of the point, then barycentric
+    coordinates."""
+    shape = cells(x, tets) if shape is None else shape
     found = np.zeros(len(points), dtype=bool)
-    if i.size == 0:
+    if len(points) == 0 or len(tets) == 0:
         return found
+    i, e = _near(points, shape)
+    corners = shape.corners
     edges = corners[e, 1:] - corners[e, :1]  # (m, 3 edges, 3)
     solvable = np.abs(np.linalg.det(edges)) > 0.0
     i, e, edges = i[solvable], e[solvable], edges[solvable]
@@ -225,34 +314,51 @@ def closest_on_triangles(p: np.ndarray, a: np.ndarray, b: np.ndarray,
     return out
 
 
-def nearest_faces(points: np.ndarray, x: np.ndarray, faces: np.ndarray):
-    """The triangle of ``faces (f, 3)`` (vertices at ``x``) nearest to each of
-    ``points (p, 3)``: ``(face (p,), weights (p, 3), distance (p,))``, ``weights`` the
-    barycentric coordinates of its closest point. Exact: every triangle whose centroid lies
-    within (the distance to the nearest centroid + the largest centroid-to-corner distance)
-    is tried."""
-    corners = x[faces]
-    centroid = corners.mean(axis=1)
-    spread = float(np.linalg.norm(corners - centroid[:, None], axis=2).max(initial=0.0))
-    nearest = cKDTree(centroid).query(points)[0]
-    rows, face = pairs_within(points, centroid, float(nearest.max(initial=0.0)) + spread)
-    keep = (np.linalg.norm(points[rows] - centroid[face], axis=1)
-            <= nearest[rows] + spread * (1 + 1e-12))
-    rows, face = rows[keep], face[keep]
-    a, b, c = (corners[face, k] for k in range(3))
-    weights = closest_on_triangles(points[rows], a, b, c)
-    closest = weights[:, :1] * a + weights[:, 1:2] * b + weights[:, 2:] * c
-    distance = np.linalg.norm(points[rows] - closest, axis=1)
-    # the nearest face of each point: sort by point, then distance
-    order = np.lexsort((distance, rows))
-    first = order[np.flatnonzero(np.r_[True, rows[order][1:] != rows[order][:-1]])]
-    out = np.empty(len(points), dtype=np.int64)
-    out[rows[first]] = face[first]
+def nearest_faces(points: np.ndarray, x: np.ndarray, faces: np.ndarray,
+                  shape: Cells | None = None):
+    """The triangle of ``faces (f, 3)`` (vertices at ``x``; ``shape``: their :class:`Cells`,
+    when kept) nearest to each of ``points (p, 3)``: ``(face (p,), weights (p, 3),
+    distance (p,))``, ``weights`` the barycentric coordinates of its closest point.
+
+    Exact: the distance to the face of the nearest centroid bounds each point's answer from
+    above, and no point of a triangle is nearer than its centroid's distance less its
+    reach, so every triangle that can be nearest is tried (:func:`_near`, one bound per
+    point). Of faces at equal distance, the first in the centroids' tree order wins."""
+    shape = cells(x, faces) if shape is None else shape
+    out = np.zeros(len(points), dtype=np.int64)
     w = np.zeros((len(points), 3))
-    w[rows[first]] = weights[first]
     d = np.full(len(points), np.inf)
-    d[rows[first]] = distance[first]
+    if len(points) == 0 or len(faces) == 0:
+        return out, w, d
+    rows, face = _near(points, shape,
+                       lambda k: _distances(points, shape.corners[k])[1])
+    weights, distance = _distances(points[rows], shape.corners[face])
+    best = _first_nearest(rows, distance, shape.rank[face], len(faces))
+    out[rows[best]] = face[best]
+    w[rows[best]] = weights[best]
+    d[rows[best]] = distance[best]
     return out, w, d
+
+
+def _first_nearest(rows: np.ndarray, distance: np.ndarray, rank: np.ndarray,
+                   n: int) -> np.ndarray:
+    """The index of each point's nearest candidate (``rows`` ascending): the least
+    ``distance``, of equal ones the least ``rank`` (< ``n``), as a stable sort of the
+    candidates in tree order by distance would pick (a NaN, of a degenerate triangle, last)."""
+    start = np.flatnonzero(np.r_[True, rows[1:] != rows[:-1]])
+    count = np.diff(np.r_[start, len(rows)])
+    least = np.repeat(np.fmin.reduceat(distance, start), count)
+    key = rank + n * (distance != least)
+    return np.flatnonzero(key == np.repeat(np.minimum.reduceat(key, start), count))
+
+
+def _distances(p: np.ndarray, corners: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``(weights (m, 3), distance (m,))``: the closest point of each triangle ``corners
+    (m, 3, 3)`` to ``p (m, 3)`` (barycentric weights) and the distance to it."""
+    a, b, c = corners[:, 0], corners[:, 1], corners[:, 2]
+    weights = closest_on_triangles(p, a, b, c)
+    closest = weights[:, :1] * a + weights[:, 1:2] * b + weights[:, 2:] * c
+    return weights, _norms(p - closest)
 
 
 def face_normals(x: np.ndarray, faces: np.ndarray) -> np.ndarray:
