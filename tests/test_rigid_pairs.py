@@ -16,7 +16,7 @@ from fem_frac.rigid.body import (
     point_velocities,
     velocity,
 )
-from fem_frac.rigid.collide import candidate_pairs, touching
+from fem_frac.rigid.collide import candidate_pairs, cross_pairs, touching
 from fem_frac.rigid.contact import Plane
 from fem_frac.rigid.fragment import RigidFragment
 from fem_frac.rigid.pairs import FixedBody, PairLaw, contact_rows, resolve_rows, step_all
@@ -65,6 +65,24 @@ def test_sort_and_sweep_finds_exactly_the_overlapping_boxes():
     brute = {(i, j) for i in range(400) for j in range(i + 1, 400)
              if np.all(lo[i] <= hi[j]) and np.all(lo[j] <= hi[i])}
     assert found == brute and (4, 5) in found
+
+
+def test_the_sweep_across_two_sets_finds_the_pairs_of_the_union_across_them():
+    """cross_pairs: the pairs (i of the first set, j of the second) that candidate_pairs
+    finds in the union, in the same order; equal starts (a tie counted once), coincident
+    and touching boxes included."""
+    rng = np.random.default_rng(5)
+    lo = np.round(rng.uniform(0.0, 10.0, (500, 3)), 1)  # many equal starts
+    hi = lo + np.round(rng.uniform(0.0, 1.5, (500, 3)), 1)
+    lo[300], hi[300] = lo[10], hi[10]
+    lo[301, 0] = hi[11, 0]
+    na = 200
+    union = candidate_pairs(lo, hi)
+    across = union[(union[:, 0] < na) & (union[:, 1] >= na)] - [0, na]
+    found = cross_pairs(lo[:na], hi[:na], lo[na:], hi[na:])
+    np.testing.assert_array_equal(found, across)
+    assert len(found) > 100 and [10, 100] in found.tolist()
+    assert cross_pairs(lo[:0], hi[:0], lo, hi).shape == (0, 2)
 
 
 @pytest.mark.parametrize("gap", [0.2, 1e-12, 0.0, -1e-9, -0.1])

@@ -11,7 +11,13 @@ import pytest
 from fem_frac.rigid.birth import place
 from fem_frac.rigid.deformable import detect, separate
 from fem_frac.rigid.nonconvex import own_shape
-from fem_frac.rigid.separation import WEDGED, least_translation, tet_overlaps, world_tets
+from fem_frac.rigid.separation import (
+    WEDGED,
+    least_translation,
+    overlap_constraints,
+    tet_overlaps,
+    world_tets,
+)
 from tests.test_deformable_contact import _block_and_cube
 from tests.test_rigid_nonconvex import _stepped_halves
 
@@ -126,3 +132,28 @@ def test_pieces_touching_by_their_tets_are_separated_within_one_step():
     np.testing.assert_allclose(moved[1], [0.01 * 1.25 / 2.0, 0.0, 0.0], atol=ROUND_OFF)
     for body in bodies:
         np.testing.assert_allclose(body.momentum, 0.0, atol=ROUND_OFF)
+
+
+@pytest.mark.parametrize("tolerance", [0.0, 1e-3, 0.05])
+def test_overlap_constraints_are_every_pair_of_tets_deeper_than_the_tolerance(tolerance):
+    """Two jagged clouds of tets, partly overlapping: the constraints (the boxes' sweep
+    across the two sets, the face normals' bound, then all 44 axes) are those of every pair
+    of tets through tet_overlaps with the same scale, in the same order, to the bit."""
+    rng = np.random.default_rng(9)
+
+    def cloud(n, centre):
+        base = rng.uniform(-0.5, 0.5, (n, 1, 3)) + centre
+        return base + rng.uniform(-0.15, 0.15, (n, 4, 3))
+
+    xa, xb = cloud(120, [0.0, 0.0, 0.0]), cloud(90, [0.6, 0.1, 0.0])
+    normal, depth = overlap_constraints(xa, xb, tolerance)
+    pa, pb = np.repeat(xa, len(xb), axis=0), np.tile(xb, (len(xa), 1, 1))
+    lo_a, hi_a, lo_b, hi_b = pa.min(axis=1), pa.max(axis=1), pb.min(axis=1), pb.max(axis=1)
+    boxed = np.all((lo_a <= hi_b) & (lo_b <= hi_a), axis=1)
+    edges = np.abs(np.concatenate([pa[boxed], pb[boxed]])[:, [1, 2, 3, 2, 3, 3]]
+                   - np.concatenate([pa[boxed], pb[boxed]])[:, [0, 0, 0, 1, 1, 2]]).max()
+    every_normal, every_depth = tet_overlaps(pa[boxed], pb[boxed], float(edges))
+    deeper = every_depth > tolerance
+    assert deeper.sum() > 10
+    np.testing.assert_array_equal(depth, every_depth[deeper])
+    np.testing.assert_array_equal(normal, every_normal[deeper])

@@ -103,6 +103,33 @@ def candidate_pairs(lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
     return pairs[np.lexsort((pairs[:, 1], pairs[:, 0]))]
 
 
+def cross_pairs(lo_a: np.ndarray, hi_a: np.ndarray, lo_b: np.ndarray,
+                hi_b: np.ndarray) -> np.ndarray:
+    """``(k, 2)`` index pairs ``(i, j)``, sorted, of a box ``[lo_a[i], hi_a[i]]`` of one
+    set and a box ``[lo_b[j], hi_b[j]]`` of another (each ``(N, 3)``) that overlap (closed
+    boxes): the pairs across the two sets that :func:`candidate_pairs` finds in their union,
+    without the pairs within a set (two pieces' tets: each piece's neighbours overlap).
+    Sweep on x from each side: the boxes of the other set starting within a box (from its
+    own start, inclusive on the first side only, so a tie counts once), then y and z."""
+    found = []
+    for lo, hi, lo2, hi2, inclusive in ((lo_a, hi_a, lo_b, hi_b, True),
+                                        (lo_b, hi_b, lo_a, hi_a, False)):
+        order = np.argsort(lo2[:, 0], kind="stable")
+        start = lo2[order, 0]
+        first = np.searchsorted(start, lo[:, 0], side="left" if inclusive else "right")
+        end = np.searchsorted(start, hi[:, 0], side="right")
+        count = np.maximum(end - first, 0)
+        mine = np.repeat(np.arange(len(lo)), count)
+        offset = np.arange(mine.size) - np.repeat(np.cumsum(count) - count, count)
+        other = order[np.repeat(first, count) + offset]
+        keep = np.all((lo[mine, 1:] <= hi2[other, 1:]) & (lo2[other, 1:] <= hi[mine, 1:]),
+                      axis=1)
+        pair = (mine[keep], other[keep])
+        found.append(np.stack(pair if inclusive else pair[::-1], axis=1))
+    pairs = np.concatenate(found).reshape(-1, 2)
+    return pairs[np.lexsort((pairs[:, 1], pairs[:, 0]))]
+
+
 def swept_boxes(bodies, dt: float, gravity, margin: np.ndarray):
     """``(lo, hi)``, each ``(N, 3)``: the bounding spheres of ``bodies`` swept over ``dt`` of
     free flight of their centres and widened by ``margin (N,)``."""

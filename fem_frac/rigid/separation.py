@@ -55,7 +55,8 @@ def _face_axes(x: np.ndarray) -> np.ndarray:
     return np.cross(c[:, :, 1] - c[:, :, 0], c[:, :, 2] - c[:, :, 0])
 
 
-def tet_overlaps(xa: np.ndarray, xb: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def tet_overlaps(xa: np.ndarray, xb: np.ndarray,
+                 size: float | None = None) -> tuple[np.ndarray, np.ndarray]:
     """``(normal (k, 3), depth (k,))`` of each pair of tets ``xa[k]``, ``xb[k]`` (each
     ``(k, 4, 3)``, world vertices) by the separating-axis theorem: over the axes of the two
     tets' face normals and the cross products of their edges (44), the one along which
@@ -69,7 +70,8 @@ def tet_overlaps(xa: np.ndarray, xb: np.ndarray) -> tuple[np.ndarray, np.ndarray
     cross = np.cross(ea[:, :, None], eb[:, None, :]).reshape(k, 36, 3)
     axes = np.concatenate([_face_axes(xa), _face_axes(xb), cross], axis=1)
     length = np.linalg.norm(axes, axis=2)
-    size = max(float(np.abs(ea).max()), float(np.abs(eb).max()))
+    if size is None:
+        size = max(float(np.abs(ea).max()), float(np.abs(eb).max()))
     valid = length > 1e-9 * size * size  # parallel edges give no axis
     axes = axes / np.where(valid, length, 1.0)[:, :, None]
     pa = np.einsum("kai,kvi->kav", axes, xa)
@@ -101,13 +103,41 @@ def overlap_constraints(xa: np.ndarray, xb: np.ndarray, tolerance: float):
     tets of ``a`` (``xa (ea, 4, 3)``) deeper than ``tolerance``: for each such pair, the
     direction ``b`` must move to clear it and how far (:func:`tet_overlaps`); the pairs
     found by their bounding boxes (sort and sweep)."""
-    from .collide import candidate_pairs
+    from .collide import cross_pairs
 
-    lo = np.concatenate([xa.min(axis=1), xb.min(axis=1)])
-    hi = np.concatenate([xa.max(axis=1), xb.max(axis=1)])
-    pairs = candidate_pairs(lo, hi)
-    na = len(xa)
-    cross = pairs[(pairs[:, 0] < na) & (pairs[:, 1] >= na)]
-    normal, depth = tet_overlaps(xa[cross[:, 0]], xb[cross[:, 1] - na])
+    pairs = cross_pairs(xa.min(axis=1), xa.max(axis=1), xb.min(axis=1), xb.max(axis=1))
+    pa, pb = xa[pairs[:, 0]], xb[pairs[:, 1]]
+    size = _edge_size(pa, pb)
+    # the depth is the least overlap over all the axes, so a pair whose face normals alone
+    # overlap it no more than tolerance is no deeper (a round-off's slack more kept): only
+    # the others need the 36 edge axes
+    deep = _face_overlap(pa, pb, size) > tolerance - 1e-9 * size
+    normal, depth = tet_overlaps(pa[deep], pb[deep], size)
     keep = depth > tolerance
     return normal[keep], depth[keep]
+
+
+def _edge_size(xa: np.ndarray, xb: np.ndarray) -> float:
+    """The largest edge component of the tets ``xa``, ``xb`` (k, 4, 3): the scale of
+    :func:`tet_overlaps`' test for parallel edges."""
+    if len(xa) == 0:
+        return 0.0
+    ea = xa[:, TET_EDGES[:, 1]] - xa[:, TET_EDGES[:, 0]]
+    eb = xb[:, TET_EDGES[:, 1]] - xb[:, TET_EDGES[:, 0]]
+    return max(float(np.abs(ea).max()), float(np.abs(eb).max()))
+
+
+def _face_overlap(xa: np.ndarray, xb: np.ndarray, size: float) -> np.ndarray:
+    """``(k,)``: the least overlap of the tets' projections over their 8 face normals, an
+    upper bound of :func:`tet_overlaps`' depth with the same ``size`` (the same axes,
+    valid where they are valid there, and the same arithmetic)."""
+    if len(xa) == 0:
+        return np.zeros(0)
+    axes = np.concatenate([_face_axes(xa), _face_axes(xb)], axis=1)
+    length = np.linalg.norm(axes, axis=2)
+    valid = length > 1e-9 * size * size
+    axes = axes / np.where(valid, length, 1.0)[:, :, None]
+    pa = np.einsum("kai,kvi->kav", axes, xa)
+    pb = np.einsum("kai,kvi->kav", axes, xb)
+    overlap = np.minimum(pa.max(axis=2) - pb.min(axis=2), pb.max(axis=2) - pa.min(axis=2))
+    return np.where(valid, overlap, np.inf).min(axis=1)
