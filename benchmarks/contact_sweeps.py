@@ -3,13 +3,11 @@
     python benchmarks/contact_sweeps.py cases/breaking_beam.yaml
 
 Runs ``fem-frac run CASE -q`` in this process (into a temporary folder) with the impulse
-solver (``fem_frac.rigid.contact._sequential_impulses``) wrapped. In a call with friction,
-each sweep updates the friction of every point with friction once
-(``_friction_impulse``), so their count over the number of such points is the call's
-sweeps. Reported for those calls: their number, the sweeps' quartiles, the calls that
-stop at the cap (``_ITERATIONS``), their share of the friction updates (the solver's
-work) and how far they leave the normal velocities of their pushing points from the
-targets, and how often the exact solution on the active set (``_polish``) held.
+solver (``fem_frac.rigid.contact._gauss_seidel``, which returns its sweeps) wrapped.
+Reported for the calls with friction: their number, the sweeps' quartiles, the calls that
+stop at the cap (``_ITERATIONS``), their share of the point updates (sweeps x points: the
+solver's work) and how far they leave the normal velocities of their pushing points from
+the targets, and how often the exact solution on the active set (``_polish``) held.
 """
 
 from __future__ import annotations
@@ -33,30 +31,18 @@ def main() -> None:
     import fem_frac.rigid.contact as contact
     from fem_frac.app.cli import main as cli
 
-    calls, now = [], {}
-    inner, friction_update, polish = (contact._sequential_impulses,
-                                      contact._friction_impulse, contact._polish)
-
-    def counted_update(*a, **k):
-        now["updates"] += 1
-        return friction_update(*a, **k)
-
-    def counted_polish(*a, **k):
-        out = polish(*a, **k)
-        now["held"] += out is not None
-        return out
+    calls = []
+    inner = contact._gauss_seidel
 
     def solver(a, b, target, friction, *rest, **kw):
-        now.update(updates=0, held=0)
-        out = inner(a, b, target, friction, *rest, **kw)
+        lam, sweeps, exact = inner(a, b, target, friction, *rest, **kw)
         points = int(np.count_nonzero(np.asarray(friction) > 0.0))
         if points:
-            calls.append((now["updates"] / points, now["updates"], now["held"],
-                          _normal_error(a, b, target, out)))
-        return out
+            calls.append((sweeps, sweeps * len(target), exact,
+                          _normal_error(a, b, target, lam)))
+        return lam, sweeps, exact
 
-    contact._sequential_impulses, contact._friction_impulse, contact._polish = (
-        solver, counted_update, counted_polish)
+    contact._gauss_seidel = solver
     with tempfile.TemporaryDirectory() as tmp:
         try:
             cli(["run", str(args.case), "-o", str(Path(tmp) / "out"), "-q"])
@@ -73,7 +59,7 @@ def main() -> None:
     print(f"{args.case}: {len(calls)} solves with friction; sweeps a solve: quartiles "
           f"{q[0]:.0f} / {q[1]:.0f} / {q[2]:.0f}, max {sweeps.max():.0f}")
     print(f"at the cap ({contact._ITERATIONS} sweeps): {int(capped.sum())} solves, "
-          f"{100 * updates[capped].sum() / updates.sum():.0f} % of the friction updates")
+          f"{100 * updates[capped].sum() / updates.sum():.0f} % of the point updates")
     if capped.any():
         e = np.percentile(error[capped], [50, 100])
         print(f"  their normal velocity off its target at a pushing point: median {e[0]:.2g},"

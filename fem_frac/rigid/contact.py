@@ -205,7 +205,15 @@ def _eigen2(entries):
 
 def _sequential_impulses(a, b, target, friction, iterations=_ITERATIONS, polish=False,
                          scale=None):
-    """(3c,) accumulated impulses: normal velocity ``>= target``, friction in the disc.
+    """(3c,) accumulated impulses: normal velocity ``>= target``, friction in the disc
+    (:func:`_gauss_seidel`'s)."""
+    return _gauss_seidel(a, b, target, friction, iterations, polish, scale)[0]
+
+
+def _gauss_seidel(a, b, target, friction, iterations=_ITERATIONS, polish=False, scale=None):
+    """``(lam (3c,), sweeps, exact)``: the accumulated impulses (normal velocity ``>=
+    target``, friction in the disc), the sweeps made and whether the exact solution on
+    the active set (:func:`_polish`) ended them.
 
     a: (3c, 3c) Delassus matrix ``J M^-1 J^T``; b: (3c,) velocities before; target: (c,).
     Each update minimizes the kinetic energy over one point's impulses (block Gauss-Seidel),
@@ -218,6 +226,7 @@ def _sequential_impulses(a, b, target, friction, iterations=_ITERATIONS, polish=
     scale = (float(np.abs(b).max()) if scale is None else scale) + 1e-300
     before = b.copy()
     points = _sweep_terms(a, b, target, friction, lam)
+    sweep = 0
     for sweep in range(1, iterations + 1):
         for j, row, pivot, rest, sliding in points:
             lam[j] = max(lam[j] + (rest - row @ lam) / pivot, 0.0)
@@ -241,8 +250,8 @@ def _sequential_impulses(a, b, target, friction, iterations=_ITERATIONS, polish=
         if polish and sweep % _POLISH_EVERY == 0:
             exact = _polish(a, b, lam, target, friction, scale)
             if exact is not None:
-                return exact
-    return lam
+                return exact, sweep, True
+    return lam, sweep, False
 
 
 def _sweep_terms(a, b, target, friction, lam):
