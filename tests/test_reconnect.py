@@ -86,6 +86,20 @@ def test_element_masses_survive_a_crack(order):
                                       consistent_mass(new_space, 7800.0).data)
 
 
+def test_lumped_element_masses_survive_a_crack():
+    """The same for a lumped mass (explicit dynamics): the old mesh's lumped scalar element
+    masses give the cracked mesh's lumped mass to the bit."""
+    from fem_frac.fem.mass import element_scalar_lumped, lumped_mass
+
+    density = np.linspace(1000.0, 8000.0, 64 * 6)
+    for old, new, _ in _cracked(0.15):
+        kept = element_scalar_lumped(build_space(old, 1), density)
+        new_space = build_space(new, 1)
+        np.testing.assert_array_equal(kept, element_scalar_lumped(new_space, density))
+        np.testing.assert_array_equal(lumped_mass(new_space, density, kept),
+                                      lumped_mass(new_space, density))
+
+
 @pytest.mark.parametrize("distortion", [0.0, 0.15])
 def test_reconnected_mass_equals_a_fresh_assembly(distortion):
     """The consistent mass updated through the changed tets: the values of a fresh assembly

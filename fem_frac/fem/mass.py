@@ -93,21 +93,29 @@ def element_lumped_mass(space: Space, density: float) -> np.ndarray:
     P2 vertices a negative mass (``-rho V_e / 20``), which explicit dynamics cannot use.
     On straight tets this is the row-sum rule for P1 too, so HRZ is applied to both.
     """
+    return np.repeat(element_scalar_lumped(space, density), 3, axis=1)
+
+
+def element_scalar_lumped(space: Space, density: float) -> np.ndarray:
+    """``(n_tets, n_local)``: the lumped scalar mass of each element node (HRZ, see
+    :func:`element_lumped_mass`, which repeats it for the three components)."""
     me = element_scalar_mass(space, density)
     diag = np.einsum("eaa->ea", me)
     total = me.sum(axis=(1, 2))  # rho V_e
-    lumped = diag * (total / diag.sum(axis=1))[:, None]
-    return np.repeat(lumped, 3, axis=1)
+    return diag * (total / diag.sum(axis=1))[:, None]
 
 
-def lumped_mass(space: Space, density: float) -> np.ndarray:
+def lumped_mass(space: Space, density: float, scalar: np.ndarray | None = None) -> np.ndarray:
     """Diagonal (lumped) vector mass ``(n_dofs,)``, every entry > 0.
 
     Assembled from :func:`element_lumped_mass` (row sum for P1, HRZ for P2); the total
-    per component is ``rho * volume``.
+    per component is ``rho * volume``. ``scalar``: the elements' lumped scalar masses
+    (:func:`element_scalar_lumped`) when known (a crack leaves them as they are).
     """
+    if scalar is None:
+        scalar = element_scalar_lumped(space, density)
     m = np.zeros(space.n_dofs)
-    np.add.at(m, space.element_dofs.ravel(), element_lumped_mass(space, density).ravel())
+    np.add.at(m, space.element_dofs.ravel(), np.repeat(scalar, 3, axis=1).ravel())
     return m
 
 

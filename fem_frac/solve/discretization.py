@@ -261,12 +261,22 @@ def build_operators(recipe: Recipe, space: Space, materials: ElementMaterials,
             k = op.stiffness(d)
     mass = damping = element_mass = None
     if recipe.dynamic:
-        from ..fem.mass import consistent_mass, element_scalar_mass, lumped_mass
+        from ..fem.mass import (
+            consistent_mass,
+            element_scalar_lumped,
+            element_scalar_mass,
+            lumped_mass,
+        )
 
         analysis = recipe.analysis
         with timer("mass"):
             if analysis.mass_kind == "lumped":
-                mass = sp.diags(lumped_mass(space, materials.density)).tocsr()
+                # a crack moves no tet and changes no material: the element masses of the
+                # mesh it reconnected are this one's (kept for linear tets)
+                element_mass = None if changed is None else previous[0].ops.element_mass
+                if element_mass is None and space.order == 1:
+                    element_mass = element_scalar_lumped(space, materials.density)
+                mass = sp.diags(lumped_mass(space, materials.density, element_mass)).tocsr()
             else:
                 # a crack moves no tet and changes no material: the element masses of
                 # the mesh it reconnected are this one's

@@ -23,8 +23,9 @@ class Operators:
     """What one topology provides: the strain operator (``strain``, ``internal_force``,
     ``stiffness``), the elastic stiffness, and the mass and damping matrices when there is
     inertia (``mass`` a sparse matrix, consistent or diagonal); the cohesive crack faces
-    (``interface``) when cracks carry a fracture energy; the consistent mass's scalar
-    element masses (``element_mass``), which a crack insertion leaves as they are."""
+    (``interface``) when cracks carry a fracture energy; the scalar element masses
+    (``element_mass``: ``(n_tets, k, k)`` of a consistent mass, ``(n_tets, k)`` of a
+    lumped one on linear tets), which a crack insertion leaves as they are."""
 
     strain_operator: object
     stiffness: sp.csr_matrix
