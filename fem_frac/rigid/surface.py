@@ -282,36 +282,86 @@ def inside_tets(points: np.ndarray, x: np.ndarray, tets: np.ndarray,
     return found
 
 
+# Ericson's seven regions of the closest point (5.1.5), in his order: corner A, corner B,
+# edge AB, corner C, edge AC, edge BC, the face; each one's weights as rows of the table
+# of :func:`_region_weights`.
+_REGION_ROWS = np.array([[1, 0, 0], [0, 1, 0], [5, 4, 0], [0, 0, 1], [7, 0, 6], [0, 3, 2],
+                         [10, 8, 9]])
+
+# The region of each set of the six region tests (bit k: test k holds): the first that
+# holds, as Ericson's sequence of early returns picks; none: the face.
+_FIRST_REGION = np.array([6] + [(k & -k).bit_length() - 1 for k in range(1, 64)])
+
+
 def closest_on_triangles(p: np.ndarray, a: np.ndarray, b: np.ndarray,
                          c: np.ndarray) -> np.ndarray:
     """``(m, 3)`` barycentric weights of the point of each triangle ``a, b, c (m, 3)``
     closest to ``p (m, 3)`` (Ericson, Real-Time Collision Detection, 5.1.5: the Voronoi
-    regions of the corners, the edges and the face, vectorized)."""
+    regions of the corners, the edges and the face, vectorized). Each region's weights
+    are computed once for all rows and each row takes those of its region: a few dozen
+    numpy calls on ``(m,)`` rows, whatever the regions (the weights decide contact
+    normals and ties downstream: the same bits as a region-by-region assignment)."""
+    d = _corner_dots(p, a, b, c)
+    d1, d2, d3, d4, d5, d6 = d
+    v = np.empty((3, len(p)))  # Ericson's va, vb, vc
+    np.subtract(d3 * d6, d5 * d4, out=v[0])
+    np.subtract(d5 * d2, d1 * d6, out=v[1])
+    np.subtract(d1 * d4, d3 * d2, out=v[2])
+    ef = np.empty((2, len(p)))  # d4 - d3, d5 - d6
+    np.subtract(d4, d3, out=ef[0])
+    np.subtract(d5, d6, out=ef[1])
+    table = _region_weights(d, v, ef)
+    region = _regions(d, v, ef)
+    n = len(p)
+    return table.reshape(-1).take(_REGION_ROWS[region] * n + np.arange(n)[:, None])
+
+
+def _corner_dots(p: np.ndarray, a: np.ndarray, b: np.ndarray, c: np.ndarray) -> np.ndarray:
+    """``(6, m)`` Ericson's ``d1 .. d6``: ``ab.ap, ac.ap, ab.bp, ac.bp, ab.cp, ac.cp``, one
+    einsum per pair (einsum's sum of three products is not ``(u * v).sum(1)``'s to the
+    bit)."""
     ab, ac, ap, bp, cp = b - a, c - a, p - a, p - b, p - c
+    d = np.empty((6, len(p)))
+    for k, (u, w) in enumerate(((ab, ap), (ac, ap), (ab, bp), (ac, bp), (ab, cp), (ac, cp))):
+        np.einsum("ij,ij->i", u, w, out=d[k])
+    return d
 
-    def dot(u, v):
-        return np.einsum("ij,ij->i", u, v)
 
-    d1, d2, d3, d4, d5, d6 = dot(ab, ap), dot(ac, ap), dot(ab, bp), dot(ac, bp), \
-        dot(ab, cp), dot(ac, cp)
-    va, vb, vc = d3 * d6 - d5 * d4, d5 * d2 - d1 * d6, d1 * d4 - d3 * d2
+def _region_weights(d: np.ndarray, v: np.ndarray, ef: np.ndarray) -> np.ndarray:
+    """``(11, m)`` the weights of every region, for every row: ``z, z + 1, t, 1 - t, s,
+    1 - s, r, 1 - r, v, w, 1 - v - w`` with ``t`` the parameter on edge BC, ``s`` on AB,
+    ``r`` on AC, ``v, w`` the face's and ``z = 0 t`` (0, of the sign of ``t``, or NaN
+    where ``t`` is not finite: Ericson's zero weights, as they were computed)."""
+    d1, d2, d3, _, _, d6 = d
+    table = np.empty((11, d.shape[1]))
     with np.errstate(divide="ignore", invalid="ignore"):
-        total = va + vb + vc
-        v, w = vb / total, vc / total
-        out = np.stack([1.0 - v - w, v, w], axis=1)
-        # the regions in the reverse of Ericson's order, so that the first of his wins
-        t = (d4 - d3) / ((d4 - d3) + (d5 - d6))
-        regions = [
-            ((va <= 0) & (d4 - d3 >= 0) & (d5 - d6 >= 0), [0 * t, 1 - t, t]),
-            ((vb <= 0) & (d2 >= 0) & (d6 <= 0), [1 - d2 / (d2 - d6), 0 * t, d2 / (d2 - d6)]),
-            ((d6 >= 0) & (d5 <= d6), [0 * t, 0 * t, 0 * t + 1]),
-            ((vc <= 0) & (d1 >= 0) & (d3 <= 0), [1 - d1 / (d1 - d3), d1 / (d1 - d3), 0 * t]),
-            ((d3 >= 0) & (d4 <= d3), [0 * t, 0 * t + 1, 0 * t]),
-            ((d1 <= 0) & (d2 <= 0), [0 * t + 1, 0 * t, 0 * t]),
-        ]
-        for mask, weights in regions:
-            out[mask] = np.stack(weights, axis=1)[mask]
-    return out
+        np.divide(ef[0], ef[0] + ef[1], out=table[2])
+        np.multiply(0.0, table[2], out=table[0])
+        np.add(table[0], 1.0, out=table[1])
+        np.subtract(1.0, table[2], out=table[3])
+        np.divide(d1, d1 - d3, out=table[4])
+        np.subtract(1.0, table[4], out=table[5])
+        np.divide(d2, d2 - d6, out=table[6])
+        np.subtract(1.0, table[6], out=table[7])
+        np.divide(v[1:], v[0] + v[1] + v[2], out=table[8:10])
+        np.subtract(1.0 - table[8], table[9], out=table[10])
+    return table
+
+
+def _regions(d: np.ndarray, v: np.ndarray, ef: np.ndarray) -> np.ndarray:
+    """``(m,)`` Ericson's region of each row (``_REGION_ROWS``' order): the first of his
+    six tests that holds (on a boundary, the earlier region wins), else the face."""
+    d1, d2, d3, d4, d5, d6 = d
+    le, ge = d <= 0.0, d >= 0.0
+    v_le, ef_ge = v <= 0.0, ef >= 0.0
+    tests = np.empty((6, d.shape[1]), dtype=bool)
+    np.logical_and(le[0], le[1], out=tests[0])
+    np.logical_and(ge[2], d4 <= d3, out=tests[1])
+    np.logical_and(v_le[2] & ge[0], le[2], out=tests[2])
+    np.logical_and(ge[5], d5 <= d6, out=tests[3])
+    np.logical_and(v_le[1] & ge[1], le[5], out=tests[4])
+    np.logical_and(v_le[0] & ef_ge[0], ef_ge[1], out=tests[5])
+    return _FIRST_REGION[np.packbits(tests, axis=0, bitorder="little")[0]]
 
 
 def nearest_faces(points: np.ndarray, x: np.ndarray, faces: np.ndarray,
