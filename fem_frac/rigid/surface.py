@@ -94,6 +94,12 @@ class Solid:
         """``(f, 3)`` the outward unit normals of its exterior faces."""
         return face_normals(self.vertices, self.faces)
 
+    @cached_property
+    def radius(self) -> float:
+        """The largest distance of its vertices from its body frame's origin (its centre):
+        its bounding sphere, for the broad phases."""
+        return float(np.linalg.norm(self.vertices, axis=1).max(initial=0.0))
+
 
 _SOLIDS: dict[int, Solid] = {}
 
@@ -395,8 +401,8 @@ def _first_nearest(rows: np.ndarray, distance: np.ndarray, rank: np.ndarray,
     """The index of each point's nearest candidate (``rows`` ascending): the least
     ``distance``, of equal ones the least ``rank`` (< ``n``), as a stable sort of the
     candidates in tree order by distance would pick (a NaN, of a degenerate triangle, last)."""
-    start = np.flatnonzero(np.r_[True, rows[1:] != rows[:-1]])
-    count = np.diff(np.r_[start, len(rows)])
+    start = np.flatnonzero(np.concatenate(([True], rows[1:] != rows[:-1])))
+    count = np.diff(start, append=len(rows))
     least = np.repeat(np.fmin.reduceat(distance, start), count)
     key = rank + n * (distance != least)
     return np.flatnonzero(key == np.repeat(np.minimum.reduceat(key, start), count))
