@@ -158,7 +158,7 @@ def _triangle_queries(m: int, rng):
     return p, a, b, c
 
 
-@pytest.mark.parametrize("m", [1, 2, 7, 64, 500, 5000])
+@pytest.mark.parametrize("m", [0, 1, 2, 7, 64, 500, 5000])
 def test_closest_on_triangles_keeps_the_bits_of_the_region_by_region_weights(m):
     """Bit for bit (the sign of zero and NaN of degenerate triangles included) against the
     first implementation, on random and degenerate triangles and points on their
