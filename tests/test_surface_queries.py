@@ -99,3 +99,86 @@ def test_a_solid_keeps_its_geometry_and_answers_as_built_afresh():
         for a, b in zip((face, weights, distance),
                         nearest_faces(p, shape.vertices, shape.faces), strict=True):
             np.testing.assert_array_equal(a, b)
+
+
+def _ericson_by_region(p, a, b, c):
+    """The closest-point weights as they were first computed (one einsum per dot product,
+    each region's weights stacked for all rows and assigned on its own, in the reverse of
+    Ericson's order): the bits :func:`closest_on_triangles` must keep."""
+    ab, ac, ap, bp, cp = b - a, c - a, p - a, p - b, p - c
+
+    def dot(u, v):
+        return np.einsum("ij,ij->i", u, v)
+
+    d1, d2, d3, d4, d5, d6 = dot(ab, ap), dot(ac, ap), dot(ab, bp), dot(ac, bp), \
+        dot(ab, cp), dot(ac, cp)
+    va, vb, vc = d3 * d6 - d5 * d4, d5 * d2 - d1 * d6, d1 * d4 - d3 * d2
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+        total = va + vb + vc
+        v, w = vb / total, vc / total
+        out = np.stack([1.0 - v - w, v, w], axis=1)
+        t = (d4 - d3) / ((d4 - d3) + (d5 - d6))
+        regions = [
+            ((va <= 0) & (d4 - d3 >= 0) & (d5 - d6 >= 0), [0 * t, 1 - t, t]),
+            ((vb <= 0) & (d2 >= 0) & (d6 <= 0), [1 - d2 / (d2 - d6), 0 * t, d2 / (d2 - d6)]),
+            ((d6 >= 0) & (d5 <= d6), [0 * t, 0 * t, 0 * t + 1]),
+            ((vc <= 0) & (d1 >= 0) & (d3 <= 0), [1 - d1 / (d1 - d3), d1 / (d1 - d3), 0 * t]),
+            ((d3 >= 0) & (d4 <= d3), [0 * t, 0 * t + 1, 0 * t]),
+            ((d1 <= 0) & (d2 <= 0), [0 * t + 1, 0 * t, 0 * t]),
+        ]
+        for mask, weights in regions:
+            out[mask] = np.stack(weights, axis=1)[mask]
+    return out
+
+
+def _triangle_queries(m: int, rng):
+    """``(p, a, b, c)``, ``m`` rows: general triangles and degenerate ones (a corner
+    repeated, collinear, a point), at scales 1e-9 to 1e9, on a coarse grid (exact ties);
+    points anywhere, on corners, on edges, on the face, with signed zeros."""
+    a, b, c, p = (rng.standard_normal((m, 3)) for _ in range(4))
+    kind = rng.integers(0, 5, m)
+    b[kind == 1] = a[kind == 1]
+    c[kind == 2] = a[kind == 2] + rng.uniform(-2, 2, (np.count_nonzero(kind == 2), 1)) \
+        * (b[kind == 2] - a[kind == 2])
+    b[kind == 3] = c[kind == 3] = a[kind == 3]
+    grid = rng.random(m) < 0.3
+    for x in (a, b, c, p):
+        x[grid] = np.round(x[grid] * 2) / 2
+    s = rng.uniform(0.0, 1.0, (m, 2)) * rng.integers(0, 2, (m, 2))
+    where = rng.integers(0, 6, m)
+    on = [a, b, c, a + s[:, :1] * (b - a), b + s[:, 1:] * (c - b),
+          a + s[:, :1] * (b - a) + s[:, 1:] * (c - a)]
+    for k in range(5):
+        p[where == k] = on[k][where == k]
+    scale = 10.0 ** rng.choice([-9, 0, 0, 0, 9], (m, 1))
+    a, b, c, p = (x * scale for x in (a, b, c, p))
+    zero = rng.random((4, m, 3)) < 0.15
+    for x, z in zip((p, a, b, c), zero, strict=True):
+        x[z] = rng.choice([0.0, -0.0], np.count_nonzero(z))
+    return p, a, b, c
+
+
+@pytest.mark.parametrize("m", [0, 1, 2, 7, 64, 500, 5000])
+def test_closest_on_triangles_keeps_the_bits_of_the_region_by_region_weights(m):
+    """Bit for bit (the sign of zero and NaN of degenerate triangles included) against the
+    first implementation, on random and degenerate triangles and points on their
+    features."""
+    for seed in range(20 if m < 500 else 3):
+        p, a, b, c = _triangle_queries(m, np.random.default_rng(1000 * m + seed))
+        got = closest_on_triangles(p, a, b, c)
+        want = _ericson_by_region(p, a, b, c)
+        assert got.shape == want.shape == (m, 3)
+        np.testing.assert_array_equal(got.view(np.int64), want.view(np.int64))
+
+
+def test_the_triangle_queries_reach_every_region_and_the_odd_bits():
+    """The inputs above are worth the test: every region, negative zeros and NaNs."""
+    p, a, b, c = _triangle_queries(5000, np.random.default_rng(0))
+    w = _ericson_by_region(p, a, b, c)
+    assert np.count_nonzero(np.signbit(w) & (w == 0.0)) > 10
+    assert np.count_nonzero(np.isnan(w).any(axis=1)) > 10
+    exact = np.isfinite(w).all(axis=1)
+    patterns = {tuple(r) for r in (w[exact] == 0.0)}
+    assert {(False, True, True), (True, False, True), (True, True, False),
+            (False, False, True), (False, True, False), (True, False, False),
+            (False, False, False)} <= patterns

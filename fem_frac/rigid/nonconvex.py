@@ -52,7 +52,7 @@ def own_shape(fragment) -> Solid | None:
 def _radius(body: RigidBody, shape: Solid | None) -> float:
     radius = hull(body.points).radius
     if shape is not None:
-        radius = max(radius, float(np.linalg.norm(shape.vertices, axis=1).max(initial=0.0)))
+        radius = max(radius, shape.radius)
     return radius
 
 

@@ -94,6 +94,12 @@ class Solid:
         """``(f, 3)`` the outward unit normals of its exterior faces."""
         return face_normals(self.vertices, self.faces)
 
+    @cached_property
+    def radius(self) -> float:
+        """The largest distance of its vertices from its body frame's origin (its centre):
+        its bounding sphere, for the broad phases."""
+        return float(np.linalg.norm(self.vertices, axis=1).max(initial=0.0))
+
 
 _SOLIDS: dict[int, Solid] = {}
 
@@ -282,36 +288,99 @@ def inside_tets(points: np.ndarray, x: np.ndarray, tets: np.ndarray,
     return found
 
 
+# Ericson's seven regions of the closest point (5.1.5), in his order: corner A, corner B,
+# edge AB, corner C, edge AC, edge BC, the face; each one's weights as rows of the table
+# of :func:`_region_weights`.
+_REGION_ROWS = np.array([[1, 0, 0], [0, 1, 0], [6, 3, 0], [0, 0, 1], [7, 0, 4], [0, 5, 2],
+                         [10, 8, 9]])
+
+# Each region's test (but the face's), as the bits of :func:`_region_codes` that must all
+# be set: A d1 <= 0, d2 <= 0; B d3 >= 0, d4 <= d3; AB vc <= 0, d1 >= 0, d3 <= 0; C d6 >= 0,
+# d5 <= d6; AC vb <= 0, d2 >= 0, d6 <= 0; BC va <= 0, e >= 0, f >= 0.
+_REGION_TESTS = ((4, 5), (11, 14), (2, 9, 6), (12, 15), (1, 10, 7), (0, 8, 13))
+
+
+def _first_regions() -> np.ndarray:
+    """``(2^16,)`` the region of every code of :func:`_region_codes`: the first whose test
+    holds (Ericson's sequence of early returns: on a boundary, the earlier region), else
+    the face."""
+    bits = (np.arange(1 << 16)[:, None] >> np.arange(16)) & 1 == 1
+    holds = [bits[:, list(test)].all(axis=1) for test in _REGION_TESTS]
+    return np.stack(holds + [np.ones(1 << 16, dtype=bool)], axis=1).argmax(axis=1)
+
+
+_FIRST_REGION = _first_regions()
+_POWERS = (1 << np.arange(16)).astype(np.uint16)
+
+
 def closest_on_triangles(p: np.ndarray, a: np.ndarray, b: np.ndarray,
                          c: np.ndarray) -> np.ndarray:
     """``(m, 3)`` barycentric weights of the point of each triangle ``a, b, c (m, 3)``
     closest to ``p (m, 3)`` (Ericson, Real-Time Collision Detection, 5.1.5: the Voronoi
-    regions of the corners, the edges and the face, vectorized)."""
+    regions of the corners, the edges and the face, vectorized). Every region's weights
+    are computed for all rows and each row takes those of its region: a few dozen numpy
+    calls, on ``(k, m)`` blocks, whatever the regions (the weights decide contact normals
+    and ties downstream: the same bits as a region-by-region assignment)."""
+    n = len(p)
+    y = _ericson_terms(_corner_dots(p, a, b, c))
+    rows = _REGION_ROWS[_FIRST_REGION[_region_codes(y)]]
+    rows *= n
+    rows += np.arange(n)[:, None]
+    return _region_weights(y).reshape(-1).take(rows)
+
+
+def _corner_dots(p: np.ndarray, a: np.ndarray, b: np.ndarray, c: np.ndarray) -> np.ndarray:
+    """``(6, m)`` Ericson's ``d1 .. d6``: ``ab.ap, ac.ap, ab.bp, ac.bp, ab.cp, ac.cp``, by one
+    einsum over the six pairs stacked (each row's sum as einsum's of the pair alone, which
+    is not ``(u * v).sum(1)``'s to the bit)."""
     ab, ac, ap, bp, cp = b - a, c - a, p - a, p - b, p - c
+    return np.einsum("ij,ij->i", np.concatenate((ab, ac, ab, ac, ab, ac)),
+                     np.concatenate((ap, ap, bp, bp, cp, cp))).reshape(6, len(p))
 
-    def dot(u, v):
-        return np.einsum("ij,ij->i", u, v)
 
-    d1, d2, d3, d4, d5, d6 = dot(ab, ap), dot(ac, ap), dot(ab, bp), dot(ac, bp), \
-        dot(ab, cp), dot(ac, cp)
-    va, vb, vc = d3 * d6 - d5 * d4, d5 * d2 - d1 * d6, d1 * d4 - d3 * d2
+def _ericson_terms(d: np.ndarray) -> np.ndarray:
+    """``(11, m)``: ``va, vb, vc, e, d1, d2, d3, d6, f, d4, d5`` of the dot products ``d``
+    (``va = d3 d6 - d5 d4``, ``vb = d5 d2 - d1 d6``, ``vc = d1 d4 - d3 d2``, ``e = d4 - d3``,
+    ``f = d5 - d6``), laid out so that the tests and weights take blocks of rows."""
+    y = np.empty((11, d.shape[1]))
+    x = d.take([2, 4, 0, 5, 1, 3, 4, 0, 2, 3, 5, 1], axis=0)
+    np.subtract(x[0:3] * x[3:6], x[6:9] * x[9:12], out=y[0:3])
+    y[4:8] = d.take([0, 1, 2, 5], axis=0)
+    y[9:11] = d[3:5]
+    np.subtract(y[9], y[6], out=y[3])
+    np.subtract(y[10], y[7], out=y[8])
+    return y
+
+
+def _region_codes(y: np.ndarray) -> np.ndarray:
+    """``(m,)`` the comparisons of the region tests as the bits of one code per row: 0-7
+    ``va, vb, vc, e, d1, d2, d3, d6 <= 0``, 8-13 ``e, d1, d2, d3, d6, f >= 0``, 14
+    ``d4 <= d3``, 15 ``d5 <= d6`` (``y`` of :func:`_ericson_terms`)."""
+    bits = np.empty((16, y.shape[1]), dtype=bool)
+    np.less_equal(y[0:8], 0.0, out=bits[0:8])
+    np.greater_equal(y[3:9], 0.0, out=bits[8:14])
+    np.less_equal(y[9:11], y[6:8], out=bits[14:16])
+    return np.dot(_POWERS, bits.view(np.uint8))
+
+
+def _region_weights(y: np.ndarray) -> np.ndarray:
+    """``(11, m)`` the weights of every region, for every row: ``z, z + 1, t, s, r, 1 - t,
+    1 - s, 1 - r, v, w, 1 - v - w`` with ``t = e / (e + f)`` the parameter on edge BC,
+    ``s = d1 / (d1 - d3)`` on AB, ``r = d2 / (d2 - d6)`` on AC, ``v, w`` the face's and
+    ``z = 0 t`` (0 of the sign of ``t``, or NaN where ``t`` is not finite: Ericson's zero
+    weights, as they were computed)."""
+    table = np.empty((11, y.shape[1]))
+    den = np.empty((3, y.shape[1]))
+    np.add(y[3], y[8], out=den[0])
+    np.subtract(y[4:6], y[6:8], out=den[1:3])
     with np.errstate(divide="ignore", invalid="ignore"):
-        total = va + vb + vc
-        v, w = vb / total, vc / total
-        out = np.stack([1.0 - v - w, v, w], axis=1)
-        # the regions in the reverse of Ericson's order, so that the first of his wins
-        t = (d4 - d3) / ((d4 - d3) + (d5 - d6))
-        regions = [
-            ((va <= 0) & (d4 - d3 >= 0) & (d5 - d6 >= 0), [0 * t, 1 - t, t]),
-            ((vb <= 0) & (d2 >= 0) & (d6 <= 0), [1 - d2 / (d2 - d6), 0 * t, d2 / (d2 - d6)]),
-            ((d6 >= 0) & (d5 <= d6), [0 * t, 0 * t, 0 * t + 1]),
-            ((vc <= 0) & (d1 >= 0) & (d3 <= 0), [1 - d1 / (d1 - d3), d1 / (d1 - d3), 0 * t]),
-            ((d3 >= 0) & (d4 <= d3), [0 * t, 0 * t + 1, 0 * t]),
-            ((d1 <= 0) & (d2 <= 0), [0 * t + 1, 0 * t, 0 * t]),
-        ]
-        for mask, weights in regions:
-            out[mask] = np.stack(weights, axis=1)[mask]
-    return out
+        np.divide(y[3:6], den, out=table[2:5])
+        np.subtract(1.0, table[2:5], out=table[5:8])
+        np.multiply(0.0, table[2], out=table[0])
+        np.add(table[0], 1.0, out=table[1])
+        np.divide(y[1:3], y[0] + y[1] + y[2], out=table[8:10])
+        np.subtract(1.0 - table[8], table[9], out=table[10])
+    return table
 
 
 def nearest_faces(points: np.ndarray, x: np.ndarray, faces: np.ndarray,
@@ -345,8 +414,8 @@ def _first_nearest(rows: np.ndarray, distance: np.ndarray, rank: np.ndarray,
     """The index of each point's nearest candidate (``rows`` ascending): the least
     ``distance``, of equal ones the least ``rank`` (< ``n``), as a stable sort of the
     candidates in tree order by distance would pick (a NaN, of a degenerate triangle, last)."""
-    start = np.flatnonzero(np.r_[True, rows[1:] != rows[:-1]])
-    count = np.diff(np.r_[start, len(rows)])
+    start = np.flatnonzero(np.concatenate(([True], rows[1:] != rows[:-1])))
+    count = np.diff(start, append=len(rows))
     least = np.repeat(np.fmin.reduceat(distance, start), count)
     key = rank + n * (distance != least)
     return np.flatnonzero(key == np.repeat(np.minimum.reduceat(key, start), count))
