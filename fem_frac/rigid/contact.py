@@ -55,6 +55,11 @@ _ITERATIONS = 200
 # slack: round-off of a least-squares solve, as a fraction of the velocities.
 _POLISH_EVERY = 5
 _ROUND_OFF = 1e-12
+# A point out of contact is skipped in a sweep (:func:`_sweep`) only while its slack exceeds
+# the bound on its velocity's change by this fraction of the impulses' total movement: over
+# the round-off of the products (n eps of it, n the 3c entries) and of the running sum
+# (eps for each of up to 1e6 updates), with room to spare.
+_ROUNDING = 1e-9
 
 
 @dataclass(frozen=True, eq=False)
@@ -226,21 +231,10 @@ def _gauss_seidel(a, b, target, friction, iterations=_ITERATIONS, polish=False, 
     scale = (float(np.abs(b).max()) if scale is None else scale) + 1e-300
     before = b.copy()
     points = _sweep_terms(a, b, target, friction, lam)
+    watch, moved = [None] * len(points), 0.0
     sweep = 0
     for sweep in range(1, iterations + 1):
-        for j, row, pivot, rest, sliding in points:
-            lam[j] = max(lam[j] + (rest - row @ lam) / pivot, 0.0)
-            if sliding is not None:
-                mu, rows, entries, b_t, lam_t, eigen = sliding
-                radius = mu * lam[j]
-                if radius <= 0.0:  # no normal impulse, no friction
-                    lam_t[:] = 0.0
-                    continue
-                # the tangential velocity without this point's friction, in Python floats
-                (k00, k01), (k10, k11) = entries
-                (r0, r1), (l0, l1) = (rows @ lam).tolist(), lam_t.tolist()
-                free = (b_t[0] + r0 - (k00 * l0 + k01 * l1), b_t[1] + r1 - (k10 * l0 + k11 * l1))
-                lam_t[:] = _friction_impulse(entries, eigen, free, radius)
+        moved = _sweep(points, lam, watch, moved)
         # stop on the contact velocities, not the impulses: with more points than the body
         # has freedoms the impulses are not unique and may wander in that null space
         velocities = b + a @ lam
@@ -254,9 +248,65 @@ def _gauss_seidel(a, b, target, friction, iterations=_ITERATIONS, polish=False, 
     return lam, sweep, False
 
 
+def _sweep(points, lam, watch, moved: float) -> float:
+    """One Gauss-Seidel sweep over ``points`` (:func:`_sweep_terms`), in place on ``lam``;
+    returns ``moved``, the sum of ``|change|`` of every entry of ``lam`` so far.
+
+    A point whose update left it out of contact (no normal impulse, its normal velocity
+    above its target by a slack) is skipped while the impulses moved since then cannot
+    have closed that slack: its normal velocity changes by at most its row's largest
+    entry times ``moved``'s growth. Its update would give zero impulses again, so the
+    skip changes no bit (``watch``: each point's ``(slack, moved then)``, or ``None``; the
+    bound has ``_ROUNDING`` of ``moved`` more for the round-off of the products)."""
+    for k, (j, row, pivot, rest, sliding, reach) in enumerate(points):
+        w = watch[k]
+        if w is not None:
+            if w[0] > reach * (moved - w[1] + _ROUNDING * moved):
+                continue
+            watch[k] = None
+        old = lam[j]
+        r = row @ lam
+        new = max(old + (rest - r) / pivot, 0.0)
+        lam[j] = new
+        if new == 0.0:  # no normal impulse, no friction
+            if old != 0.0:
+                moved += float(old)
+            elif r > rest:
+                watch[k] = (float(r - rest), moved)
+            if sliding is not None:
+                if old != 0.0:
+                    l0, l1 = sliding[4].tolist()
+                    moved += abs(l0) + abs(l1)
+                sliding[4][:] = 0.0
+            continue
+        moved += abs(float(new) - float(old))
+        if sliding is not None:
+            moved = _friction_update(sliding, lam, float(new), moved)
+    return moved
+
+
+def _friction_update(sliding, lam, normal: float, moved: float) -> float:
+    """One point's friction update (:func:`_friction_impulse`) for its normal impulse
+    ``normal`` > 0, in place on its ``lam_t``; returns ``moved`` grown by the change."""
+    mu, rows, entries, b_t, lam_t, eigen = sliding
+    radius = mu * normal
+    if radius <= 0.0:  # mu times a subnormal impulse
+        l0, l1 = lam_t.tolist()
+        lam_t[:] = 0.0
+        return moved + abs(l0) + abs(l1)
+    # the tangential velocity without this point's friction, in Python floats
+    (k00, k01), (k10, k11) = entries
+    (r0, r1), (l0, l1) = (rows @ lam).tolist(), lam_t.tolist()
+    free = (b_t[0] + r0 - (k00 * l0 + k01 * l1), b_t[1] + r1 - (k10 * l0 + k11 * l1))
+    x0, x1 = _friction_impulse(entries, eigen, free, radius)
+    lam_t[0], lam_t[1] = x0, x1
+    return moved + abs(x0 - l0) + abs(x1 - l1)
+
+
 def _sweep_terms(a, b, target, friction, lam):
     """What a Gauss-Seidel sweep reads of each point i (row j = 3 i), computed once: ``(j,
-    a[j], a[j, j], target[i] - b[j], friction terms or None)``, the friction terms ``(mu,
+    a[j], a[j, j], target[i] - b[j], friction terms or None, max |a[j]|)``, the friction
+    terms ``(mu,
     a[t], a[t, t].tolist(), b[t].tolist(), lam[t], a cache for _eigen2(a[t, t]))`` with
     ``t`` its two tangential rows (``lam[t]`` a view: the sweep writes through it)."""
     terms = []
@@ -266,7 +316,8 @@ def _sweep_terms(a, b, target, friction, lam):
         if friction[i] > 0.0:
             t = slice(j + 1, j + 3)
             sliding = (friction[i], a[t], a[t, t].tolist(), b[t].tolist(), lam[t], [])
-        terms.append((j, a[j], a[j, j], target[i] - b[j], sliding))
+        terms.append((j, a[j], a[j, j], target[i] - b[j], sliding,
+                      float(np.abs(a[j]).max())))
     return terms
 
 
