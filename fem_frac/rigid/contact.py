@@ -258,8 +258,8 @@ def _sweep(points, lam, watch, moved: float) -> float:
     entry times ``moved``'s growth. Its update would give zero impulses again, so the
     skip changes no bit (``watch``: each point's ``(slack, moved then)``, or ``None``; the
     bound has ``_ROUNDING`` of ``moved`` more for the round-off of the products). The
-    scalar work is in Python floats (the same operations as on numpy's scalars, so the
-    same bits, at a third of their cost)."""
+    scalar work is in Python floats: the same operations as on numpy's scalars, so the
+    same bits, without their overhead."""
     item = lam.item
     for k, (j, row, pivot, rest, sliding, reach) in enumerate(points):
         w = watch[k]
@@ -307,9 +307,9 @@ def _sweep(points, lam, watch, moved: float) -> float:
 def _sweep_terms(a, b, target, friction, lam):
     """What a Gauss-Seidel sweep reads of each point i (row j = 3 i), computed once: ``(j,
     a[j], a[j, j], target[i] - b[j], friction terms or None, max |a[j]|)``, the friction
-    terms ``(mu,
-    a[t], a[t, t].tolist(), b[t].tolist(), lam[t], a cache for _eigen2(a[t, t]))`` with
-    ``t`` its two tangential rows (``lam[t]`` a view: the sweep writes through it)."""
+    terms ``(mu, a[t], a[t, t].tolist(), b[t].tolist(), lam[t], a cache for
+    _eigen2(a[t, t]))`` with ``t`` its two tangential rows (``lam[t]`` a view: the sweep
+    writes through it). The scalars as Python floats."""
     terms = []
     for i in range(len(target)):
         j = 3 * i
