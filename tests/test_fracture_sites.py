@@ -139,6 +139,27 @@ def test_a_split_that_would_shed_loose_tets_is_refused():
     assert refused > 0 and accepted > 0
 
 
+def test_known_answers_are_those_of_a_fresh_lookup():
+    """splits keeps its answers on the topology's Star, by vertex and the sides its tets
+    fall on: on a cracked mesh, with many normals per vertex (repeated side patterns), the
+    kept answers equal those of a fresh Star each time, and answers are reused."""
+    mesh = structured_box((4, 3, 3), distortion=0.1, seed=5)
+    p = mesh.points
+    mesh, _ = open_crack(mesh, np.flatnonzero(np.abs(p[:, 0] - 0.5) < 0.13)[:4],
+                         np.tile([1.0, 0.0, 0.0], (4, 1)))
+    shared = star(mesh.tets, mesh.n_points)
+    c = mesh.points[mesh.tets].mean(axis=1)
+    rng = np.random.default_rng(8)
+    calls = 0
+    for v in range(mesh.n_points):
+        for n in rng.normal(size=(12, 3)):
+            kept = splits(mesh.points, mesh.tets, c, shared, v, n)
+            fresh = splits(mesh.points, mesh.tets, c, star(mesh.tets, mesh.n_points), v, n)
+            assert kept == fresh
+            calls += 1
+    assert 0 < len(shared.known) < calls
+
+
 def test_two_sided_matches_the_scalar_rule():
     mesh = structured_box((3, 3, 3), distortion=0.15, seed=4)
     lookups = star(mesh.tets, mesh.n_points)

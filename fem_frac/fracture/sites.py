@@ -27,7 +27,7 @@ element's vertices. The rules, all deterministic:
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 import scipy.sparse as sp
@@ -73,11 +73,14 @@ def vertex_tets(tets: np.ndarray, n_points: int) -> sp.csr_matrix:
 class Star:
     """Per-topology lookups for :func:`splits`: ``incidence`` (:func:`vertex_tets`), the face
     ``adjacency (m, m)`` and ``held (m, 4)``: whether the face opposite local vertex ``i`` of
-    a tet is shared with another tet."""
+    a tet is shared with another tet; ``known``: the answers of :func:`splits` so far, by
+    vertex and the sides its tets fall on (all that the answer depends on, on one
+    topology)."""
 
     incidence: sp.csr_matrix
     adjacency: sp.csr_matrix
     held: np.ndarray
+    known: dict = field(default_factory=dict, repr=False)
 
 
 def star(tets: np.ndarray, n_points: int) -> Star:
@@ -97,11 +100,24 @@ def splits(points: np.ndarray, tets: np.ndarray, centroids: np.ndarray, s: Star,
     same-side tets joined through faces at the vertex keeps a face away from the vertex
     shared with the rest of the mesh. A group without one would come off as a loose piece
     of a few tets: a crack around a corner, not across the body."""
-    inc, adj = s.incidence, s.adjacency
+    inc = s.incidence
     around = inc.indices[inc.indptr[vertex]:inc.indptr[vertex + 1]]  # ascending (canonical)
     side = (centroids[around] - points[vertex]) @ normal < 0.0
     if not side.any() or side.all():
         return False
+    key = (vertex, side.tobytes())
+    found = s.known.get(key)
+    if found is None:
+        found = s.known[key] = _anchored(tets, s, vertex, around, side)
+    return found
+
+
+def _anchored(tets: np.ndarray, s: Star, vertex: int, around: np.ndarray,
+              side: np.ndarray) -> bool:
+    """Whether every group of same-side tets ``around`` the vertex (``side`` of each) joined
+    through faces at the vertex keeps a face away from it shared with the rest (the second
+    test of :func:`splits`)."""
+    adj = s.adjacency
     # the face-sharing pairs among the tets around the vertex (plain numpy: these graphs
     # have a few dozen nodes, far below what sparse slicing pays off for)
     start, degree = adj.indptr[around], adj.indptr[around + 1] - adj.indptr[around]
