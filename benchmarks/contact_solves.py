@@ -4,7 +4,8 @@
     python benchmarks/contact_solves.py time FILE [--repeats 3]
 
 ``capture`` runs ``fem-frac run CASE -q`` in this process (into a temporary folder) with the
-impulse solver (``fem_frac.rigid.contact._gauss_seidel``) wrapped, and saves every problem
+impulse solver (``fem_frac.rigid.contact._gauss_seidel``, or ``_sequential_impulses`` in
+older checkouts, whose sweeps are then not known) wrapped, and saves every problem
 it was given (Delassus matrix, velocities, targets, friction, its options) with the
 impulses it returned, as a pickle (a file of this benchmark's own making: load only yours).
 ``time`` solves every saved problem again with this checkout's solver, in the order of the
@@ -36,17 +37,21 @@ def capture(case: Path, file: Path) -> None:
     from fem_frac.app.cli import main as cli
 
     problems = []
-    inner = contact._gauss_seidel
+    # checkouts before _gauss_seidel (09d7840 and older) have _sequential_impulses alone,
+    # which does not report its sweeps
+    name = "_gauss_seidel" if hasattr(contact, "_gauss_seidel") else "_sequential_impulses"
+    inner = getattr(contact, name)
 
     def solver(a, b, target, friction, iterations=contact._ITERATIONS, polish=False,
                scale=None):
-        lam, sweeps, exact = inner(a, b, target, friction, iterations, polish, scale)
+        out = inner(a, b, target, friction, iterations, polish, scale)
+        lam, sweeps = (out[0], out[1]) if name == "_gauss_seidel" else (out, -1)
         problems.append(dict(a=np.array(a), b=np.array(b), target=np.array(target),
                              friction=np.array(friction), iterations=iterations,
                              polish=polish, scale=scale, lam=lam.copy(), sweeps=sweeps))
-        return lam, sweeps, exact
+        return out
 
-    contact._gauss_seidel = solver
+    setattr(contact, name, solver)
     with tempfile.TemporaryDirectory() as tmp:
         try:
             cli(["run", str(case), "-o", str(Path(tmp) / "out"), "-q"])
@@ -56,7 +61,8 @@ def capture(case: Path, file: Path) -> None:
     with open(file, "wb") as f:
         pickle.dump(problems, f)
     capped = sum(p["sweeps"] >= p["iterations"] for p in problems)
-    print(f"{case}: {len(problems)} problems ({capped} at the cap) saved to {file}")
+    print(f"{case}: {len(problems)} problems ({capped} at the cap; -1 sweeps: not "
+          f"reported) saved to {file}")
 
 
 def solve_all(problems) -> tuple[list, np.ndarray]:
