@@ -38,6 +38,7 @@ import numpy as np
 
 from .directory import Manifest, create_plain
 from .series import series_writer
+from .vtu import write_vtu
 
 # The half side: this many bounding-box diagonals, plus this many heights above the plane.
 DIAGONALS = 1.5
@@ -92,26 +93,20 @@ def write_ground(target: Manifest | Path | str, name: str, planes: Sequence,
     file); its path, or ``None`` (nothing written) without planes."""
     if not planes:
         return None
-    import meshio
-
     manifest = target if isinstance(target, Manifest) else Manifest(Path(target))
     filename = ground_name(name)
     scratch = f"{filename}.tmp"
     path = manifest.add(scratch, filename)
     corners = ground_quads(planes, points)
     k = len(planes)
-    mesh = meshio.Mesh(
-        corners.reshape(-1, 3),
-        [("quad", np.arange(4 * k, dtype=np.int64).reshape(k, 4))],
-        cell_data={
-            "obstacle_id": [np.arange(k, dtype=np.int32)],
-            "restitution": [np.array([float(g.restitution) for g in planes])],
-            "friction": [np.array([float(g.friction) for g in planes])],
-            "normal": [np.array([np.asarray(g.normal, dtype=float) for g in planes])],
-        },
-    )
     create_plain(manifest.directory / scratch)
-    meshio.write(manifest.directory / scratch, mesh, file_format="vtu", binary=True)
+    write_vtu(manifest.directory / scratch, corners.reshape(-1, 3),
+              ("quad", np.arange(4 * k, dtype=np.int64).reshape(k, 4)), {},
+              {"obstacle_id": np.arange(k, dtype=np.int32),
+               "restitution": np.array([float(g.restitution) for g in planes]),
+               "friction": np.array([float(g.friction) for g in planes]),
+               "normal": np.array([np.asarray(g.normal, dtype=float) for g in planes])},
+              compression="zlib")
     os.replace(manifest.directory / scratch, path)
     return path
 

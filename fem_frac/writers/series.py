@@ -20,6 +20,7 @@ from pathlib import Path
 import numpy as np
 
 from .directory import Manifest, create_plain
+from .vtu import write_vtu
 
 # XML's escapes of an attribute value, as xml.sax.saxutils.quoteattr makes them (whose
 # module imports urllib.request, and with it http, ssl and email: ~15 ms of every run)
@@ -75,20 +76,12 @@ class SeriesWriter:
     ) -> Path:
         """Write one step. ``cells`` is ``("tetra" | "tetra10", (n_cells, k))``; cell arrays
         are ``(n_cells,)`` or ``(n_cells, m)``."""
-        import meshio
-
         filename = f"{self.name}_{len(self.entries):06d}.vtu"
         scratch = f"{self.name}.vtu.tmp"
         path = self.manifest.add(scratch, filename)
-        mesh = meshio.Mesh(
-            points,
-            [cells],
-            point_data=point_data,
-            cell_data={k: [v] for k, v in cell_data.items()},
-        )
         create_plain(self.directory / scratch)
-        meshio.vtu.write(self.directory / scratch, mesh, binary=True,
-                         compression=None if self.compression == "none" else self.compression)
+        write_vtu(self.directory / scratch, points, cells, point_data, cell_data,
+                  compression=None if self.compression == "none" else self.compression)
         os.replace(self.directory / scratch, path)
         self.entries.append((float(time), filename))
         self._write_index()

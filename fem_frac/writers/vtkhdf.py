@@ -40,9 +40,8 @@ import numpy as np
 
 from ..errors import CaseError, FemFracError
 from .directory import Manifest, create_plain
+from .vtu import VTK_TYPES
 
-#: VTK cell types of the cells a run writes.
-VTK_TYPES = {"vertex": 1, "triangle": 5, "quad": 9, "tetra": 10, "tetra10": 24}
 #: The VTKHDF version written: temporal unstructured grids are 2.0.
 VERSION = (2, 0)
 #: gzip level of ``compression: zlib`` (docs/performance.md, *Output format*).
