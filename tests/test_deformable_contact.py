@@ -259,3 +259,48 @@ def test_the_rigid_motions_cross_product_is_numpys_to_the_bit():
             got, want = _cross(w, r), np.cross(w, r)
             assert got.shape == want.shape
             np.testing.assert_array_equal(got.view(np.int64), want.view(np.int64))
+
+
+def test_the_box_around_a_fragment_drops_no_contact(monkeypatch):
+    """A long L-shaped fragment, moving and turning, among the nodes of a block of finite
+    elements with random velocities and accelerations, in 40 random placements: the nodes
+    the box of its tets drops before the exact queries (deformable._near_box) change no
+    contact, to the bit, against the queries on every node of its bounding sphere; and it
+    drops most of them (those the step cannot bring to the fragment)."""
+    import fem_frac.rigid.deformable as deformable
+
+    grid = structured_box((6, 2, 2), (3.0, 1.0, 1.0))
+    centroid = grid.points[grid.tets].mean(axis=1)
+    tets = grid.tets[~((centroid[:, 0] > 1.0) & (centroid[:, 1] > 0.5) & (centroid[:, 2] > 0.5))]
+    coords = grid.points - grid.points.mean(axis=0)
+    block = structured_box((8, 8, 8), (4.0, 4.0, 4.0))
+    n = block.n_points
+    rng = np.random.default_rng(7)
+    kept, offered, found = [], [], 0
+    box = deformable._near_box
+
+    def counted(el, near, body, shape, radius, accel, dt):
+        out = box(el, near, body, shape, radius, accel, dt)
+        offered.append(near.size)
+        kept.append(out.size)
+        return out
+
+    for _ in range(40):
+        turn = rng.standard_normal(4)
+        body = make_body(2.0, np.ones(3), contact_points(coords), rng.uniform(1.5, 2.5, 3),
+                         turn / np.linalg.norm(turn), velocity=rng.normal(0, 5, 3),
+                         angular_velocity=rng.normal(0, 5, 3))
+        piece = RigidFragment(body, coords, tets, coords, 0, 0.0)
+        el = Elements(block.points + rng.normal(0, 0.05, (n, 3)), rng.normal(0, 5, (n, 3)),
+                      rng.normal(0, 50, (n, 3)), np.ones((n, 3)), block.tets,
+                      exterior(block.tets, n, block.tets.T))
+        args = (el, [body], [0.3], rng.normal(0, 10, (1, 3)), 0.02, [fragment_solid(piece)])
+        monkeypatch.setattr(deformable, "_near_box", counted)
+        with_box = detect(*args)
+        monkeypatch.setattr(deformable, "_near_box", lambda el, near, *rest: near)
+        every = detect(*args)
+        found += len(every)
+        for name in ("body", "nodes", "weights", "point", "normal", "gap", "friction"):
+            np.testing.assert_array_equal(getattr(with_box, name), getattr(every, name))
+    assert found > 100
+    assert sum(kept) < 0.5 * sum(offered)

@@ -60,6 +60,7 @@ from .body import (
     RigidBody,
     inverse_inertia_world,
     inverse_mass,
+    rotation_matrix,
 )
 from .collide import hull
 from .contact import frames, poisson_impulses
@@ -78,6 +79,9 @@ from .surface import (
 
 # Gaps below this fraction of a body's radius count as touching.
 _SLOP = 1e-9
+# The factor on a node's bound of what a step closes of its gap (:func:`_near_box`): the
+# norms and gaps it stands for are computed to round-off, far inside this.
+_BOX_ROOM = 1.01
 
 
 @dataclass(frozen=True, eq=False)
@@ -169,6 +173,30 @@ def _near_nodes(el: Elements, body: RigidBody, radius: float, accel: np.ndarray,
     return nodes[np.linalg.norm(el.x[nodes] - body.position, axis=1) <= radius + reach]
 
 
+def _near_box(el: Elements, near: np.ndarray, body: RigidBody, shape: Solid,
+              radius: float, accel: np.ndarray, dt: float) -> np.ndarray:
+    """The nodes of ``near`` that may touch the body's own tets ``shape`` within the next
+    step: each node's distance from the box of the tets in the body frame (a lower bound of
+    its gap, which for a :class:`Solid` is the distance to its surface) is at most what the
+    step can close of it, ``dt |v - v_body(x)| + dt^2 / 2 |a - accel|`` bounded node by
+    node, plus the contact slop, with room for round-off (:data:`_BOX_ROOM`). The others'
+    gaps and predicted gaps exceed the slop: they are no contact, and their exact queries,
+    most of a long piece's near nodes (its bounding sphere's), are spared."""
+    if near.size == 0:
+        return near
+    x = el.x[near]
+    r = rotation_matrix(body.orientation)
+    local = (x - body.position) @ r
+    lower, upper = shape.bounds
+    outside = np.maximum(np.maximum(lower - local, local - upper), 0.0)
+    omega = np.linalg.norm(inverse_inertia_world(body) @ body.angular_momentum)
+    speed = (np.linalg.norm(el.v[near], axis=1) + np.linalg.norm(body.momentum)
+             * inverse_mass(body) + omega * np.linalg.norm(x - body.position, axis=1))
+    close = (dt * speed + 0.5 * dt * dt * (np.linalg.norm(el.a[near], axis=1)
+                                          + np.linalg.norm(accel)) + _SLOP * radius)
+    return near[np.linalg.norm(outside, axis=1) <= _BOX_ROOM * close + _SLOP * radius]
+
+
 def _nodes_in_body(el: Elements, k: int, body: RigidBody, shape: Solid | None,
                    friction: float, accel: np.ndarray, dt: float) -> tuple | None:
     """The exterior nodes touching body ``k`` (its own tets when it has a ``shape``, else
@@ -177,6 +205,8 @@ def _nodes_in_body(el: Elements, k: int, body: RigidBody, shape: Solid | None,
     if shape is not None:
         radius = max(radius, shape.radius)
     near = _near_nodes(el, body, radius, accel, dt)
+    if shape is not None:
+        near = _near_box(el, near, body, shape, radius, accel, dt)
     if near.size == 0:
         return None
     x = el.x[near]

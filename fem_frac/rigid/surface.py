@@ -95,6 +95,11 @@ class Solid:
         return face_normals(self.vertices, self.faces)
 
     @cached_property
+    def bounds(self) -> tuple[np.ndarray, np.ndarray]:
+        """``(lower (3,), upper (3,))``: the box of its vertices in its body frame."""
+        return self.vertices.min(axis=0), self.vertices.max(axis=0)
+
+    @cached_property
     def radius(self) -> float:
         """The largest distance of its vertices from its body frame's origin (its centre):
         its bounding sphere, for the broad phases."""
