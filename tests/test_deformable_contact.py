@@ -265,8 +265,8 @@ def test_the_box_around_a_fragment_drops_no_contact(monkeypatch):
     """A long L-shaped fragment, moving and turning, among the nodes of a block of finite
     elements with random velocities and accelerations, in 40 random placements: the nodes
     the box of its tets drops before the exact queries (deformable._near_box) change no
-    contact, to the bit, against the queries on every node of its bounding sphere; and it
-    drops most of them (those the step cannot bring to the fragment)."""
+    contact (its geometry only at round-off), against the queries on every node of its
+    bounding sphere; and it drops most of them (those the step cannot bring to it)."""
     import fem_frac.rigid.deformable as deformable
 
     grid = structured_box((6, 2, 2), (3.0, 1.0, 1.0))
@@ -300,7 +300,12 @@ def test_the_box_around_a_fragment_drops_no_contact(monkeypatch):
         monkeypatch.setattr(deformable, "_near_box", lambda el, near, *rest: near)
         every = detect(*args)
         found += len(every)
-        for name in ("body", "nodes", "weights", "point", "normal", "gap", "friction"):
+        # the same contacts; their geometry to round-off (BLAS's products of the points
+        # with the 3 x 3 rotation depend on the rows around them)
+        for name in ("body", "nodes", "point", "friction"):
             np.testing.assert_array_equal(getattr(with_box, name), getattr(every, name))
+        for name in ("weights", "normal", "gap"):
+            np.testing.assert_allclose(getattr(with_box, name), getattr(every, name),
+                                       rtol=0, atol=1e-12)
     assert found > 100
     assert sum(kept) < 0.5 * sum(offered)

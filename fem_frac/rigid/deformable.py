@@ -60,7 +60,6 @@ from .body import (
     RigidBody,
     inverse_inertia_world,
     inverse_mass,
-    rotation_matrix,
 )
 from .collide import hull
 from .contact import frames, poisson_impulses
@@ -75,6 +74,7 @@ from .surface import (
     solid,
     solid_gaps,
     surface_points,
+    within_box,
 )
 
 # Gaps below this fraction of a body's radius count as touching.
@@ -185,16 +185,12 @@ def _near_box(el: Elements, near: np.ndarray, body: RigidBody, shape: Solid,
     if near.size == 0:
         return near
     x = el.x[near]
-    r = rotation_matrix(body.orientation)
-    local = (x - body.position) @ r
-    lower, upper = shape.bounds
-    outside = np.maximum(np.maximum(lower - local, local - upper), 0.0)
     omega = np.linalg.norm(inverse_inertia_world(body) @ body.angular_momentum)
     speed = (np.linalg.norm(el.v[near], axis=1) + np.linalg.norm(body.momentum)
              * inverse_mass(body) + omega * np.linalg.norm(x - body.position, axis=1))
     close = (dt * speed + 0.5 * dt * dt * (np.linalg.norm(el.a[near], axis=1)
                                           + np.linalg.norm(accel)) + _SLOP * radius)
-    return near[np.linalg.norm(outside, axis=1) <= _BOX_ROOM * close + _SLOP * radius]
+    return near[within_box(x, body, shape, _BOX_ROOM * close + _SLOP * radius)]
 
 
 def _nodes_in_body(el: Elements, k: int, body: RigidBody, shape: Solid | None,

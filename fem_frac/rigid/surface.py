@@ -192,6 +192,18 @@ def solid_gaps(x: np.ndarray, body: RigidBody, shape: Solid) -> tuple[np.ndarray
     return np.where(inside, -distance, distance), normal @ r.T
 
 
+def within_box(x: np.ndarray, body: RigidBody, shape: Solid, margin) -> np.ndarray:
+    """``(p,)``: whether world points ``x (p, 3)`` lie within ``margin`` (a number, or one
+    per point) of the box of a body's own tets ``shape`` in its body frame, with a relative
+    ``_SLACK`` more for round-off. Its distance from the box bounds a point's distance from
+    the tets from below: a point outside it by more than ``margin`` is farther than that
+    from the body (:func:`solid_gaps`)."""
+    local = (x - body.position) @ rotation_matrix(body.orientation)
+    lower, upper = shape.bounds
+    outside = np.maximum(np.maximum(lower - local, local - upper), 0.0)
+    return _norms(outside) <= np.asarray(margin) * (1.0 + _SLACK) + _SLACK * shape.radius
+
+
 def surface_points(body: RigidBody, shape: Solid | None) -> np.ndarray:
     """World points of a body that can touch another: its own exterior vertices when it
     has a ``shape``, else its hull's."""
