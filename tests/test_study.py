@@ -279,3 +279,35 @@ def test_refinement_key_sets_the_size_of_a_time_step_study(tmp_path):
     )
     study = load_study(study_file)
     assert [r.size for r in study.runs] == [1.0e-4, 5.0e-5]
+
+
+def test_runs_side_by_side_share_the_cores_out(tmp_path, monkeypatch):
+    """Each run of a study gets OMP_NUM_THREADS = cores // workers (at least 1: PARDISO's
+    and the element-wise work's threads), unless the environment sets it."""
+    from fem_frac.app.study import runs
+
+    seen = []
+
+    def start(self, argv, env):
+        seen.append(env.get("OMP_NUM_THREADS"))
+        return None  # not run
+
+    monkeypatch.setattr(runs._Children, "start", start)
+    monkeypatch.setattr(runs.os, "sched_getaffinity", lambda pid: set(range(8)),
+                        raising=False)
+    monkeypatch.delenv("OMP_NUM_THREADS", raising=False)
+    assert [runs.run_threads(w) for w in (1, 2, 3, 8, 16)] == [8, 4, 2, 1, 1]
+    for threads in (None, 4, 1):
+        runs.execute("case.yaml", str(tmp_path / "r"), (), threads=threads)
+    assert seen == [None, "4", "1"]
+    monkeypatch.setenv("OMP_NUM_THREADS", "3")
+    runs.execute("case.yaml", str(tmp_path / "r"), (), threads=1)
+    assert seen[-1] == "3"
+    # the study's runs, three at a time on the 8 cores: 2 threads each
+    given = []
+    monkeypatch.setattr(runs, "execute", lambda *args: given.append(args[4]) or
+                        {"exit_code": None, "message": "not run"})
+    study = type("S", (), {"case_path": tmp_path / "case.yaml"})()
+    todo = [runs.Run(i, f"r{i}", {}, (), "") for i in range(4)]
+    assert len(list(runs._run_all(study, todo, tmp_path, 3))) == 4
+    assert given == [2, 2, 2, 2]

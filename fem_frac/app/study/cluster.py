@@ -25,6 +25,7 @@ from pathlib import Path
 from ...errors import FemFracError
 from . import remote
 from .inputs import run_inputs
+from .runs import run_threads
 from .spec import Run, Study
 
 HINT = "pip install 'fem-frac[cluster]'"
@@ -85,18 +86,22 @@ def cluster_runs(study: Study, todo: list[Run], runs_dir: Path, scheduler: str, 
         return
     inputs = {run.run_id: run_inputs(study.case_path, run.overrides) for run in todo}
     with connect(scheduler, workers) as client:
-        futures = _submit(client, todo, inputs)
+        # a local cluster's workers share this machine's cores; a remote worker's run keeps
+        # its machine's settings (one worker a core, as the docs advise)
+        threads = run_threads(workers) if scheduler == "local" else None
+        futures = _submit(client, todo, inputs, threads)
         try:
             yield from _gathered(futures, study, inputs, runs_dir, log)
         finally:  # also on an interrupt: start no more runs (those under way finish there)
             client.cancel([f for f in futures if not f.done()])
 
 
-def _submit(client, todo: list[Run], inputs: dict) -> dict:
+def _submit(client, todo: list[Run], inputs: dict, threads: int | None = None) -> dict:
     """Submit one task per run, in grid order. An input file up to :data:`EMBED_BYTES` is
     an argument of the task itself (the scheduler holds it, so a task started again after
     its worker died has it); a larger one is sent once to every worker (``broadcast``: it
-    survives the death of any one of them) and shared by the runs that read it."""
+    survives the death of any one of them) and shared by the runs that read it.
+    ``threads``: each run's ``OMP_NUM_THREADS`` (:func:`.runs.execute`)."""
     scattered: dict[Path, object] = {}
     futures = {}
     tag = uuid.uuid4().hex[:8]
@@ -111,7 +116,8 @@ def _submit(client, todo: list[Run], inputs: dict) -> dict:
                     client.scatter(data, hash=False, broadcast=True)
             files[rel] = scattered[path]
         fut = client.submit(remote.run_remote, ri.case, files, run.overrides, run.run_id,
-                            remote.RETURN_CAP_BYTES, key=f"fem-frac-run-{tag}-{run.index}",
+                            remote.RETURN_CAP_BYTES, threads,
+                            key=f"fem-frac-run-{tag}-{run.index}",
                             pure=False)
         futures[fut] = run
     return futures

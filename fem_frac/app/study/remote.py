@@ -37,11 +37,11 @@ STUDY_FILES = ("summary.json", "history.csv", "case.resolved.yaml", "study_run.j
 
 
 def run_remote(case: str, files: dict[str, bytes], overrides: tuple[str, ...], run_id: str,
-               cap: int) -> dict:
+               cap: int, threads: int | None = None) -> dict:
     """Run the case ``case`` (a path relative to the inputs' root, one of ``files``) with
     ``overrides`` in a temporary directory of this machine; returns the run's record
-    (:func:`.runs.execute`), its output files (``{name: bytes}``), the names left out over
-    ``cap``, the worker's paths and its host name."""
+    (:func:`.runs.execute`, ``threads`` its threads), its output files (``{name:
+    bytes}``), the names left out over ``cap``, the worker's paths and its host name."""
     work = Path(tempfile.mkdtemp(prefix="fem-frac-run-"))
     try:
         root = work / "inputs"
@@ -51,7 +51,7 @@ def run_remote(case: str, files: dict[str, bytes], overrides: tuple[str, ...], r
             path.write_bytes(data)
         (work / "runs").mkdir()
         run_dir = work / "runs" / run_id
-        record = execute(str(root / case), str(run_dir), tuple(overrides))
+        record = execute(str(root / case), str(run_dir), tuple(overrides), threads=threads)
         out, left_out = _collect(run_dir, cap)
         return {"record": record, "files": out, "left_out": left_out,
                 "paths": {"case": str(root / case), "run_dir": str(run_dir),

@@ -108,17 +108,32 @@ def _wait(proc: subprocess.Popen) -> tuple[int, float | None]:
     return code, (rss / (1024 * 1024) if sys.platform == "darwin" else rss / 1024)  # B vs KiB
 
 
+def run_threads(workers: int) -> int:
+    """The threads each of ``workers`` runs at once on this machine may use: its cores
+    shared out, at least one."""
+    try:
+        cores = len(os.sched_getaffinity(0))
+    except AttributeError:  # not on Linux
+        cores = os.cpu_count() or 1
+    return max(1, cores // max(1, workers))
+
+
 def execute(case_path: str, run_dir: str, overrides: tuple[str, ...],
-            children: _Children | None = None) -> dict:
+            children: _Children | None = None, threads: int | None = None) -> dict:
     """Run one case as ``fem-frac run`` in a fresh process (so that its peak memory is its
     own). Returns ``{exit_code, message, peak_mib, process_s}`` and writes it to
-    ``run_dir/study_run.json``; ``exit_code`` is None for a process killed by a signal."""
+    ``run_dir/study_run.json``; ``exit_code`` is None for a process killed by a signal.
+    ``threads``: the run's ``OMP_NUM_THREADS`` (PARDISO's threads and the element-wise
+    work's, :mod:`fem_frac.threads`) where the environment does not set it, so that runs
+    side by side do not oversubscribe the cores (:func:`run_threads`)."""
     argv = [sys.executable, "-m", "fem_frac", "run", case_path, "-o", run_dir, "-q",
             "--overwrite"]
     for o in overrides:
         argv += ["--set", o]
     path = os.environ.get("PYTHONPATH")
     env = {**os.environ, "PYTHONPATH": _PACKAGE_ROOT + (os.pathsep + path if path else "")}
+    if threads is not None and not os.environ.get("OMP_NUM_THREADS"):
+        env["OMP_NUM_THREADS"] = str(threads)
     children = children or _Children()
     t0 = time.perf_counter()
     proc = children.start(argv, env)
@@ -257,9 +272,10 @@ def _run_all(study: Study, todo: list[Run], runs_dir: Path, workers: int):
     case_path = str(study.case_path)
     children = _Children()
     pool = cf.ThreadPoolExecutor(workers)
+    threads = run_threads(workers)
     try:
         futures = {pool.submit(execute, case_path, str(runs_dir / run.run_id), run.overrides,
-                               children): run for run in todo}
+                               children, threads): run for run in todo}
         for fut in cf.as_completed(futures):
             try:
                 rec = fut.result()
