@@ -16,6 +16,7 @@ names, so results match ``FacetBasis`` on the same faces to round-off.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import cache
 
 import numpy as np
 
@@ -104,10 +105,6 @@ def faces_at(space: Space, rows: np.ndarray, exterior: bool = False) -> Faces:
     """The faces at ``rows (k,)`` (``4 tet + local face``, oriented out of that tet) of
     ``space``'s mesh with their nodes and quadrature: :func:`faces_of` once their holders
     are known. ``exterior``: every face is held by its tet only (recorded)."""
-    from skfem import ElementTriP1, ElementTriP2
-    from skfem.quadrature import get_quadrature
-    from skfem.refdom import RefTri
-
     mesh = space.mesh
     rows = np.asarray(rows, dtype=np.int64)
     outward = np.take_along_axis(np.asarray(mesh.tets, dtype=np.int64)[rows // 4],
@@ -115,13 +112,9 @@ def faces_at(space: Space, rows: np.ndarray, exterior: bool = False) -> Faces:
     corners = np.sort(outward, axis=1)
     nodes = corners if space.order == 1 else np.hstack(
         [corners, _mid_nodes(space, rows // 4, corners)])
-    X, W = get_quadrature(RefTri, 2 * space.order)
-    element = ElementTriP1() if space.order == 1 else ElementTriP2()
-    phi = np.stack([element.lbasis(X, a)[0] for a in range(nodes.shape[1])])
     curved = space.order == 2 and mesh.curved  # the space's MeshTet2: isoparametric faces
-    geometry = ElementTriP2() if curved else ElementTriP1()
+    W, phi, dshape = _reference_face(space.order, curved)
     x = space.node_points[nodes[:, : 6 if curved else 3]]  # (k, n_geom, 3)
-    dshape = np.stack([geometry.lbasis(X, a)[1] for a in range(x.shape[1])])  # (g, 2, q)
     tangents = np.einsum("kgi,gjq->jikq", x, dshape)  # (2, 3, k, q)
     cross = np.cross(tangents[0], tangents[1], axis=0)  # (3, k, q)
     area = np.sqrt(np.einsum("ikq,ikq->kq", cross, cross))
@@ -132,6 +125,26 @@ def faces_at(space: Space, rows: np.ndarray, exterior: bool = False) -> Faces:
     sign = np.where(odd == 1, -1.0, 1.0)
     normals = cross * (sign[:, None] / area)[None]
     return Faces(nodes, phi, area * W[None, :], normals, rows, exterior)
+
+
+@cache
+def _reference_face(order: int, curved: bool) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``(W (q,), phi (n, q), dshape (g, 2, q))`` on the reference triangle: the quadrature
+    weights of degree ``2 order``, the values of the ``n`` basis functions of order
+    ``order`` and the derivatives of the ``g`` geometry functions (P2 where ``curved``)
+    at its points; made once (read-only: a face set's arrays are computed from them)."""
+    from skfem import ElementTriP1, ElementTriP2
+    from skfem.quadrature import get_quadrature
+    from skfem.refdom import RefTri
+
+    X, W = get_quadrature(RefTri, 2 * order)
+    element = ElementTriP1() if order == 1 else ElementTriP2()
+    phi = np.stack([element.lbasis(X, a)[0] for a in range(3 if order == 1 else 6)])
+    geometry = ElementTriP2() if curved else ElementTriP1()
+    dshape = np.stack([geometry.lbasis(X, a)[1] for a in range(6 if curved else 3)])
+    for a in (W, phi, dshape):
+        a.flags.writeable = False
+    return W, phi, dshape
 
 
 def _mid_nodes(space: Space, tets: np.ndarray, corners: np.ndarray) -> np.ndarray:
