@@ -291,3 +291,57 @@ def test_sweeps_that_skip_points_out_of_contact_are_the_same_bits(seed):
         # the bits, signed zeros included
         np.testing.assert_array_equal(lam.view(np.int64), plain.view(np.int64))
     assert any(w is not None for w in watch)
+
+
+def _stack_problem(seed):
+    """A random contact problem of a few bodies: rank 18, 24 points pushing in, friction
+    at most of them."""
+    rng = np.random.default_rng(seed)
+    c = 24
+    jac = rng.normal(size=(3 * c, 18))
+    b = jac @ rng.normal(size=18)
+    b[0::3] -= np.abs(rng.normal(scale=2.0, size=c))
+    target = -np.abs(rng.normal(scale=0.1, size=c))
+    friction = np.where(rng.random(c) < 0.6, rng.uniform(0.05, 0.8, c), 0.0)
+    return jac @ jac.T, b, target, friction
+
+
+@pytest.mark.parametrize("seed", range(8))
+def test_the_polish_memo_changes_no_bit(seed, monkeypatch):
+    """contact._polish keeps the system of its last try that did not hold and does not
+    solve it again: the solver's impulses, sweeps and ending equal, to the bit, those of
+    trying every time."""
+    a, b, target, friction = _stack_problem(seed)
+    polish = contact._polish
+    kept = contact._gauss_seidel(a, b, target, friction, polish=True)
+    monkeypatch.setattr(contact, "_polish",
+                        lambda a, b, lam, target, friction, scale, failed=None:
+                        polish(a, b, lam, target, friction, scale))
+    every = contact._gauss_seidel(a, b, target, friction, polish=True)
+    np.testing.assert_array_equal(kept[0].view(np.int64), every[0].view(np.int64))
+    assert kept[1:] == every[1:]
+
+
+def test_a_polish_that_failed_is_not_solved_again(monkeypatch):
+    """The same system after a try that did not hold: no least-squares solve, None; another
+    active set: solved."""
+    a, b, target, friction = _stack_problem(0)
+    lam = np.zeros_like(b)
+    points = contact._sweep_terms(a, b, target, friction, lam)
+    watch, moved = [None] * len(points), 0.0
+    for _ in range(3):
+        moved = contact._sweep(points, lam, watch, moved)
+    solves = []
+    lstsq = np.linalg.lstsq
+    monkeypatch.setattr(np.linalg, "lstsq", lambda *args, **kw: solves.append(1)
+                        or lstsq(*args, **kw))
+    scale = float(np.abs(b).max())
+    failed = [None]
+    assert contact._polish(a, b, lam, target, friction, scale, failed) is None
+    assert len(solves) == 1 and failed[0] is not None
+    assert contact._polish(a, b, lam, target, friction, scale, failed) is None
+    assert len(solves) == 1
+    other = lam.copy()
+    other[0::3][np.flatnonzero(other[0::3] > 0.0)[0]] = 0.0  # one point leaves
+    contact._polish(a, b, other, target, friction, scale, failed)
+    assert len(solves) == 2

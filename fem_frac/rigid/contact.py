@@ -232,6 +232,7 @@ def _gauss_seidel(a, b, target, friction, iterations=_ITERATIONS, polish=False, 
     before = b.copy()
     points = _sweep_terms(a, b, target, friction, lam)
     watch, moved = [None] * len(points), 0.0
+    failed = [None]  # the last system _polish tried in vain
     sweep = 0
     for sweep in range(1, iterations + 1):
         moved = _sweep(points, lam, watch, moved)
@@ -242,7 +243,7 @@ def _gauss_seidel(a, b, target, friction, iterations=_ITERATIONS, polish=False, 
             break
         before = velocities
         if polish and sweep % _POLISH_EVERY == 0:
-            exact = _polish(a, b, lam, target, friction, scale)
+            exact = _polish(a, b, lam, target, friction, scale, failed)
             if exact is not None:
                 return exact, sweep, True
     return lam, sweep, False
@@ -322,7 +323,7 @@ def _sweep_terms(a, b, target, friction, lam):
     return terms
 
 
-def _polish(a, b, lam, target, friction, scale):
+def _polish(a, b, lam, target, friction, scale, failed=None):
     """The exact impulses on the active set of ``lam`` (3c,), or ``None`` if they break a
     condition. Points with a normal impulse are active: sticking ones (inside the friction
     disc) reach ``v_n = target``, ``v_t = 0``; sliding ones (on the rim) ``v_n = target``
@@ -330,24 +331,31 @@ def _polish(a, b, lam, target, friction, scale):
     system is solved by least squares (its minimum-norm solution: more points than freedoms
     leave it singular), then checked: ``lambda_n >= 0``, sticking impulses in the disc,
     sliding velocities against ``s``, every point's ``v_n >= target`` (to ``_ROUND_OFF`` of
-    the velocities)."""
+    the velocities). failed: a list of one item that keeps the system of the last try that
+    did not hold (its active, sticking and sliding points and the sliding directions); a
+    try on the same system is the same computation, so it is not made again."""
     c = len(target)
     pts = lam.reshape(c, 3)
     active = pts[:, 0] > 0.0
-    tangential = np.linalg.norm(pts[:, 1:], axis=1)
+    tangential = _lengths(pts[:, 1], pts[:, 2])
     sliding = active & (friction > 0.0) & (tangential >= friction * pts[:, 0] * (1 - 1e-9))
     sticking = active & (friction > 0.0) & ~sliding
     # the unknowns: the entries of lam at ``rows``, a sliding point's friction following
     # its normal impulse (``lam_t = mu lam_n s``)
-    rows_n, rows_t = 3 * np.flatnonzero(active), 3 * np.flatnonzero(sticking)
+    rows_n, rows_t = 3 * active.nonzero()[0], 3 * sticking.nonzero()[0]
     rows = np.sort(np.concatenate([rows_n, rows_t + 1, rows_t + 2]))
-    slide = np.flatnonzero(sliding)
+    slide = sliding.nonzero()[0]
     direction = pts[slide, 1:] / tangential[slide, None]
     col = np.searchsorted(rows, 3 * slide)
     follow = friction[slide, None] * direction  # (sliding, 2)
-    matrix = a[np.ix_(rows, rows)]
-    matrix[:, col] += (a[np.ix_(rows, 3 * slide + 1)] * follow[:, 0]
-                       + a[np.ix_(rows, 3 * slide + 2)] * follow[:, 1])
+    system = (active.tobytes(), sticking.tobytes(), follow.tobytes())
+    if failed is not None and failed[0] == system:
+        return None
+    # (the blocks of ``a`` by plain indexing: np.ix_'s, without its checks)
+    across = rows[:, None]
+    matrix = a[across, rows]
+    matrix[:, col] += (a[across, 3 * slide + 1] * follow[:, 0]
+                       + a[across, 3 * slide + 2] * follow[:, 1])
     rhs = np.zeros(3 * c)
     rhs[0::3] = target
     x = np.linalg.lstsq(matrix, (rhs - b)[rows], rcond=None)[0]
@@ -358,13 +366,21 @@ def _polish(a, b, lam, target, friction, scale):
     v = (b + a @ exact).reshape(c, 3)
     pts = exact.reshape(c, 3)
     slack = _ROUND_OFF * scale
-    inside = np.linalg.norm(pts[:, 1:], axis=1) <= friction * pts[:, 0] * (1 + 1e-12) + slack
+    inside = _lengths(pts[:, 1], pts[:, 2]) <= friction * pts[:, 0] * (1 + 1e-12) + slack
     against = np.einsum("ij,ij->i", v[slide, 1:], direction) <= slack
     along = np.abs(v[slide, 1] * direction[:, 1] - v[slide, 2] * direction[:, 0]) <= slack
-    if (np.all(pts[:, 0] >= 0.0) and np.all(v[:, 0] >= target - slack)
-            and np.all(inside[sticking]) and np.all(against) and np.all(along)):
+    if ((pts[:, 0] >= 0.0).all() and (v[:, 0] >= target - slack).all()
+            and inside[sticking].all() and against.all() and along.all()):
         return exact
+    if failed is not None:
+        failed[0] = system
     return None
+
+
+def _lengths(x: np.ndarray, y: np.ndarray) -> np.ndarray:
+    """``(k,)`` the lengths of the 2-vectors ``(x, y)``: np.linalg.norm's of their rows, to
+    the bit (the same squares and sum), without its overhead."""
+    return np.sqrt(x * x + y * y)
 
 
 def _apply(body: RigidBody, jac: np.ndarray, lam: np.ndarray) -> RigidBody:
