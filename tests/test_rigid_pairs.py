@@ -27,7 +27,7 @@ UP = np.array([0.0, 0.0, 1.0])
 CORNERS = np.array(list(itertools.product([-1.0, 1.0], repeat=3)))
 # Gauss-Seidel stops when a sweep changes no velocity by more than 1e-13 of the largest, and
 # the active-set solve it ends with is exact to round-off (accepted within 1e-12 of the
-# velocities: contact._ROUND_OFF): velocities after impulses hold to this, relative
+# velocities: active_set.ROUND_OFF): velocities after impulses hold to this, relative
 SOLVE = 1e-12
 
 
