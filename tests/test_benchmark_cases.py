@@ -28,6 +28,10 @@ def test_floor_work_and_row_of_a_small_case(tmp_path):
     ideal = work["iterations"] * floor["floor"]
     line = bench.table([row]).splitlines()[-1]
     assert line.startswith("| vibrating_beam |") and f"**{2.0 / ideal:.0f}**" in line
+    # the floors of several rounds: the least, and their spread
+    rounds = {**row, "floors": [1.5 * floor["floor"], floor["floor"]]}
+    spread = f"{1e3 * floor['floor']:.2f} ({0.5e3 * floor['floor']:.2f})"
+    assert f"| {spread} |" in bench.table([rounds]).splitlines()[-1]
     # a case without finite-element work has no ratio; a failed one says so
     rigid = {**row, "iterations": 0}
     assert "| - |" in bench.table([rigid]).splitlines()[-1]
