@@ -65,23 +65,22 @@ def main() -> None:
 
     rng = np.random.default_rng(0)
     with tempfile.TemporaryDirectory() as out:
+
+        def ours(points, cells, point_data, cell_data):
+            write_vtu(os.path.join(out, "a.vtu"), points, cells, point_data, cell_data)
+
+        def theirs(points, cells, point_data, cell_data):
+            mesh = meshio.Mesh(points, [cells], point_data=dict(point_data),
+                               cell_data={k: [v] for k, v in cell_data.items()})
+            meshio.vtu.write(os.path.join(out, "b.vtu"), mesh, binary=True, compression=None)
+
         for n, m in SIZES:
-            points, cells, point_data, cell_data = frame(n, m, rng)
-
-            def ours():
-                write_vtu(os.path.join(out, "a.vtu"), points, cells, point_data, cell_data)
-
-            def theirs():
-                mesh = meshio.Mesh(points, [cells], point_data=dict(point_data),
-                                   cell_data={k: [v] for k, v in cell_data.items()})
-                meshio.vtu.write(os.path.join(out, "b.vtu"), mesh, binary=True,
-                                 compression=None)
-
+            data = frame(n, m, rng)
             times = {"fem_frac": [], "meshio": []}
             for _ in range(args.repeats):
                 for name, fn in (("meshio", theirs), ("fem_frac", ours)):
                     t = time.process_time()
-                    fn()
+                    fn(*data)
                     times[name].append(time.process_time() - t)
             cells_ = ", ".join(f"{k} {1e3 * min(v):.2f} / {1e3 * float(np.median(v)):.2f} ms"
                                for k, v in times.items())
