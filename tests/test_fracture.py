@@ -411,3 +411,25 @@ def test_the_criterion_is_the_smoothed_stress_not_the_element_stress():
     assert smoothed.max() == smoothed[spike] and np.count_nonzero(smoothed) > 2
     after, event = stage(Step(1, 1.0, world), stressed(np.full(n_tets, 1.5 * STRENGTH)))
     assert event.batches and after.body.crack.faces > 0
+
+
+def test_a_bodys_crack_is_measured_when_read_and_once_for_its_copies(monkeypatch):
+    """A body's crack faces and area (world.state.Body.crack) are measured at the first
+    read, not when the body is made (a batch's bodies in between are never read), and the
+    copies of a body for other states share the measure of their one mesh."""
+    import fem_frac.world.state as state
+    from fem_frac.fracture.summary import crack_measures
+    from meshes import structured_box
+
+    mesh = structured_box((4, 2, 2), lengths=(4.0, 1.0, 1.0))
+    x_mid = np.flatnonzero(np.isclose(mesh.points[:, 0], 2.0))
+    cracked, _ = open_crack(mesh, x_mid, np.tile([1.0, 0.0, 0.0], (len(x_mid), 1)))
+    calls = []
+    monkeypatch.setattr(state, "crack_measures", lambda m: calls.append(m) or
+                        crack_measures(m))
+    body = state.Body(None, None, np.zeros(cracked.n_tets, dtype=int), 2,
+                      state.MeshCrack(cracked))
+    copy = body.with_state(None).with_fields(x=np.zeros(cracked.n_tets))
+    assert not calls
+    assert copy.crack == body.crack == crack_measures(cracked)
+    assert copy.crack.faces > 0 and len(calls) == 1

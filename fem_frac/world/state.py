@@ -9,6 +9,7 @@ objects of the world it was derived from, so it is rebuilt when they are replace
 from __future__ import annotations
 
 from dataclasses import dataclass, field, replace
+from functools import cached_property
 
 import numpy as np
 
@@ -27,7 +28,7 @@ class Body:
 
     ``labels (n_tets,)``: the piece (connected component over shared faces, and over
     cohesive crack faces that still hold) of every element, ``n_pieces`` their count;
-    ``crack``: the crack faces and area of the mesh;
+    ``measured``: the crack faces and area of the mesh (:attr:`crack`);
     ``fields``: element fields ``(n_tets,)`` that stages publish for the output (the smoothed
     largest principal stress of the fracture criterion), carried through topology changes
     element by element.
@@ -37,12 +38,18 @@ class Body:
     state: State
     labels: np.ndarray
     n_pieces: int
-    crack: CrackMeasures
+    measured: MeshCrack
     fields: dict = field(default_factory=dict)
 
     @property
     def mesh(self):
         return self.disc.mesh
+
+    @property
+    def crack(self) -> CrackMeasures:
+        """The crack faces and area of the mesh, measured when first read (the output's, a
+        step's last body: a batch's bodies in between are not measured)."""
+        return self.measured.value
 
     def with_state(self, state: State, **fields) -> Body:
         """The same discretization with ``state`` and the ``fields`` published for it (the
@@ -64,7 +71,19 @@ def body_of(disc: Discretization, state: State, fields: dict | None = None,
         links = interface.links(state.cohesive) if interface is not None else None
         pieces = fragments(disc.mesh.tets, links)
     n, labels = pieces
-    return Body(disc, state, labels, n, crack_measures(disc.mesh), dict(fields or {}))
+    return Body(disc, state, labels, n, MeshCrack(disc.mesh), dict(fields or {}))
+
+
+class MeshCrack:
+    """A mesh's :class:`CrackMeasures`, made at the first read of :attr:`value` and kept
+    (a body's copies for other states share it: their mesh is the same)."""
+
+    def __init__(self, mesh):
+        self.mesh = mesh
+
+    @cached_property
+    def value(self) -> CrackMeasures:
+        return crack_measures(self.mesh)
 
 
 @dataclass(frozen=True, eq=False)
