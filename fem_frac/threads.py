@@ -33,12 +33,17 @@ _pool: tuple[int, int, object] | None = None  # (pid, workers, executor); a fork
 # has no threads of its parent's pool and makes its own
 
 
+def cores() -> int:
+    """The CPUs this process may run on."""
+    try:
+        return len(os.sched_getaffinity(0))
+    except AttributeError:  # not on Linux
+        return os.cpu_count() or 1
+
+
 def threads() -> int:
     """The threads element-wise work may use (module docstring)."""
-    try:
-        n = len(os.sched_getaffinity(0))
-    except AttributeError:  # not on Linux
-        n = os.cpu_count() or 1
+    n = cores()
     limit = os.environ.get("OMP_NUM_THREADS", "").strip()
     if limit.isdigit() and int(limit) > 0:
         n = min(n, int(limit))

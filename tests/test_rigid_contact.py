@@ -306,20 +306,36 @@ def _stack_problem(seed):
     return jac @ jac.T, b, target, friction
 
 
-@pytest.mark.parametrize("seed", range(8))
-def test_the_polish_memo_changes_no_bit(seed, monkeypatch):
+@pytest.mark.parametrize("frictionless", [False, True])
+def test_the_polish_memo_changes_no_bit(frictionless, monkeypatch):
     """contact._polish keeps the system of its last try that did not hold and does not
-    solve it again: the solver's impulses, sweeps and ending equal, to the bit, those of
-    trying every time."""
-    a, b, target, friction = _stack_problem(seed)
+    solve it again: on eight random problems, the solver's impulses, sweeps and ending
+    equal, to the bit, those of trying every time. Without friction the memo spares tries
+    (counted: the last failed system is left as it was); with it, the sliding directions
+    change between tries on these problems, and nothing is spared."""
     polish = contact._polish
-    kept = contact._gauss_seidel(a, b, target, friction, polish=True)
-    monkeypatch.setattr(contact, "_polish",
-                        lambda a, b, lam, target, friction, scale, failed=None:
-                        polish(a, b, lam, target, friction, scale))
-    every = contact._gauss_seidel(a, b, target, friction, polish=True)
-    np.testing.assert_array_equal(kept[0].view(np.int64), every[0].view(np.int64))
-    assert kept[1:] == every[1:]
+    spared = [0]
+
+    def counted(a, b, lam, target, friction, scale, failed=None):
+        before = failed[0]
+        out = polish(a, b, lam, target, friction, scale, failed)
+        spared[0] += out is None and before is not None and failed[0] is before
+        return out
+
+    def every_time(a, b, lam, target, friction, scale, failed=None):
+        return polish(a, b, lam, target, friction, scale)
+
+    for seed in range(8):
+        a, b, target, friction = _stack_problem(seed)
+        if frictionless:
+            friction = np.zeros_like(friction)
+        monkeypatch.setattr(contact, "_polish", counted)
+        kept = contact._gauss_seidel(a, b, target, friction, polish=True)
+        monkeypatch.setattr(contact, "_polish", every_time)
+        every = contact._gauss_seidel(a, b, target, friction, polish=True)
+        np.testing.assert_array_equal(kept[0].view(np.int64), every[0].view(np.int64))
+        assert kept[1:] == every[1:]
+    assert (spared[0] > 0) == frictionless
 
 
 def test_a_polish_that_failed_is_not_solved_again(monkeypatch):

@@ -16,6 +16,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from ...errors import FemFracError
+from ...threads import cores
 from ...writers.directory import check_location, name_problem, replace_file
 from .analysis import evaluate, summary_value
 from .spec import Run, Study
@@ -111,11 +112,7 @@ def _wait(proc: subprocess.Popen) -> tuple[int, float | None]:
 def run_threads(workers: int) -> int:
     """The threads each of ``workers`` runs at once on this machine may use: its cores
     shared out, at least one."""
-    try:
-        cores = len(os.sched_getaffinity(0))
-    except AttributeError:  # not on Linux
-        cores = os.cpu_count() or 1
-    return max(1, cores // max(1, workers))
+    return max(1, cores() // max(1, workers))
 
 
 def execute(case_path: str, run_dir: str, overrides: tuple[str, ...],
