@@ -5,6 +5,10 @@
 
 ``run``: cases/*.yaml, cases/stability/*.yaml (default) in turn as ``sys.executable -m fem_frac
 run CASE -o OUTDIR/<stem> -q --overwrite`` (stability__<stem>); exit codes in OUTDIR/runs.json.
+Each run starts in the checkout that holds this script, so that it runs that checkout's
+fem_frac (``-m`` puts the working directory first on ``sys.path``, before ``PYTHONPATH``):
+to run an older commit, run the script of a worktree of it, ``python
+/tmp/old/benchmarks/compare_cases.py run OUT``; GLOBs are relative to that checkout.
 ``compare``: per case of REF, exit codes, files, .pvd, .vtu, history.csv, summary.json (no timing,
 paths, versions); exit 1 on a mismatch. Floats: |a - b| <= max(rtol * scale, atol), scale the
 array's largest magnitude (history's energies share one; ratios have 1).
@@ -30,6 +34,7 @@ from typing import Any, NamedTuple
 import meshio
 import numpy as np
 
+ROOT = Path(__file__).resolve().parent.parent
 DEFAULT_CASES = ["cases/*.yaml", "cases/stability/*.yaml"]
 TIMING = re.compile(r"wall|seconds|elapsed|cpu_time|_s$")
 SKIPPED = {"case", "output", "python", "fem_frac", "version"}  # summary.json keys
@@ -50,12 +55,15 @@ class Tol(NamedTuple):
 def run_cases(outdir: Path, patterns: list[str], sets: list[str]) -> int:
     outdir.mkdir(parents=True, exist_ok=True)
     runs: dict[str, dict[str, Any]] = {}
-    for case in [Path(p) for pattern in patterns for p in sorted(glob.glob(pattern))]:
+    outdir = outdir.resolve()
+    print(f"fem_frac of {ROOT}", flush=True)
+    for case in [Path(p) for pattern in patterns
+                 for p in sorted(glob.glob(pattern, root_dir=ROOT))]:
         name = case.stem if case.parent.name == "cases" else f"{case.parent.name}__{case.stem}"
         cmd = [sys.executable, "-m", "fem_frac", "run", str(case), "-o", str(outdir / name),
                "-q", "--overwrite", *(a for s in sets for a in ("--set", s))]
         t0 = time.perf_counter()
-        proc = subprocess.run(cmd, capture_output=True, text=True)
+        proc = subprocess.run(cmd, capture_output=True, text=True, cwd=ROOT)
         seconds, last = time.perf_counter() - t0, (proc.stderr.strip().splitlines() or [""])[-1]
         runs[name] = {"case": str(case), "exit_code": proc.returncode,
                       "seconds": round(seconds, 3), "stderr": last}

@@ -188,6 +188,21 @@ def _plot(args) -> int:
     return 0
 
 
+def console() -> None:
+    """The ``fem-frac`` command (and ``python -m fem_frac``): :func:`main`; ``run`` and
+    ``check`` skip what they do not use (:mod:`fem_frac.app.startup`): numpy's unread
+    submodules at scipy's import, the interpreter's teardown at exit. ``--help`` imports
+    neither numpy nor scipy; ``study`` (its workers, a dask cluster) and ``plot`` leave the
+    usual way."""
+    from .startup import import_scipy_lean, leave
+
+    if sys.argv[1:2] not in (["run"], ["check"]):
+        sys.exit(main())
+    if not {"-h", "--help"} & set(sys.argv):
+        import_scipy_lean()
+    leave(main())
+
+
 def main(argv: list[str] | None = None) -> int:
     """The command line; under ``mpiexec -n N`` rank 0 runs it and the other ranks serve
     its PETSc solves (fem_frac/solve/ranks.py)."""

@@ -1,0 +1,68 @@
+"""What the ``fem-frac`` process pays before and after a run: scipy's first import, and the
+interpreter's teardown at exit.
+
+Both are measured in docs/performance.md, "Start-up and exit". They apply to the command's
+own process only (:func:`fem_frac.app.cli.console`); a program that imports fem_frac as a
+library keeps its interpreter as it is.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import sys
+
+# numpy's submodules that numpy imports only when they are first read, and that a run never
+# reads: scipy's array-API copy of the numpy namespace (scipy._lib.array_api_compat.numpy,
+# imported by scipy.sparse) reads every name numpy lists, which imports them all (f2py,
+# testing, ma, random, polynomial: 57 ms of the 116 ms of importing scipy.sparse, measured
+# with ``python -X importtime``). scipy reads them from that copy only in its own test
+# helpers.
+UNREAD_SUBMODULES = frozenset({"f2py", "testing", "ma", "random", "polynomial", "ctypeslib",
+                               "test"})
+
+
+def import_scipy_lean() -> None:
+    """Import scipy's array-API layer while numpy lists none of :data:`UNREAD_SUBMODULES`.
+
+    numpy's module-level ``__dir__`` and ``__all__`` (which ``from numpy import *`` reads)
+    are replaced for the length of the import and put back after; whatever imports one of those submodules later gets it as usual. Nothing is done
+    where scipy is loaded already.
+    """
+    if "scipy._lib._array_api" in sys.modules:
+        return
+    import numpy
+
+    listed, public = numpy.__dict__.get("__dir__"), numpy.__dict__.get("__all__")
+    if listed is None or public is None:  # a numpy without lazy submodules
+        return
+
+    def lean() -> list[str]:
+        return [name for name in listed() if name not in UNREAD_SUBMODULES]
+
+    numpy.__dir__ = lean
+    numpy.__all__ = [name for name in public if name not in UNREAD_SUBMODULES]
+    try:
+        import scipy._lib._array_api  # noqa: F401
+    finally:
+        numpy.__dir__, numpy.__all__ = listed, public
+
+
+def leave(code: int) -> None:
+    """End the process with ``code`` without the interpreter's teardown.
+
+    Freeing every module and array and unloading MKL took 0.1-0.15 CPU s at the end of a
+    run. The exit functions registered with :mod:`atexit` run (logging, weakref finalizers)
+    and the standard streams are flushed first; every output file is closed by then (the
+    writers open them in ``with`` blocks). Under MPI, whose finalization belongs to the
+    interpreter's exit, the process leaves the usual way.
+    """
+    if "mpi4py" in sys.modules or "petsc4py" in sys.modules:
+        sys.exit(code)
+    import atexit
+
+    atexit._run_exitfuncs()
+    for stream in (sys.stdout, sys.stderr):
+        with contextlib.suppress(OSError, ValueError, AttributeError):
+            stream.flush()
+    os._exit(code)
