@@ -26,8 +26,8 @@ def import_scipy_lean() -> None:
     """Import scipy's array-API layer while numpy lists none of :data:`UNREAD_SUBMODULES`.
 
     numpy's module-level ``__dir__`` and ``__all__`` (which ``from numpy import *`` reads)
-    are replaced for the length of the import and put back after; whatever imports one of those submodules later gets it as usual. Nothing is done
-    where scipy is loaded already.
+    are replaced for the length of the import and put back after; whatever imports one of
+    those submodules later gets it as usual. Nothing is done where scipy is loaded already.
     """
     if "scipy._lib._array_api" in sys.modules:
         return
