@@ -3,13 +3,14 @@
     python benchmarks/startup.py                                   # bar_tension_break, 14 rounds
     python benchmarks/startup.py --case cases/plate_with_hole.yaml --rounds 10
 
-Each round runs the case once in each of four ways, in a fresh process each, in turn:
+Each round runs the case once in each of five ways, in a fresh process each, in turn:
 
 - ``usual``: ``fem_frac.app.cli.main()`` then ``sys.exit``: scipy imported as it comes, the
   interpreter torn down at exit (what ``fem-frac run`` did before);
 - ``lean``: scipy imported without numpy's unread submodules, usual exit;
+- ``frozen``: a run's modules imported with the garbage collector off, then frozen;
 - ``leave``: usual import, the exit without teardown;
-- ``command``: ``python -m fem_frac run`` (both).
+- ``command``: ``python -m fem_frac run`` (all three).
 
 CPU is the child's user + system time (``getrusage(RUSAGE_CHILDREN)``). Reported per way:
 median and minimum over the rounds, and against ``usual`` the median of the paired
@@ -32,17 +33,23 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parent.parent
 
 LAUNCH = """
-import sys
+import gc, sys
 from fem_frac.app.cli import main
 from fem_frac.app.startup import import_scipy_lean, leave
-lean, fast = sys.argv[1] == "1", sys.argv[2] == "1"
-sys.argv = ["fem-frac", *sys.argv[3:]]
+lean, frozen, fast = (flag == "1" for flag in sys.argv[1:4])
+sys.argv = ["fem-frac", *sys.argv[4:]]
 if lean:
     import_scipy_lean()
+if frozen:
+    gc.disable()
+    import fem_frac.config.loader, fem_frac.app.driver
+    gc.freeze()
+    gc.enable()
 code = main()
 leave(code) if fast else sys.exit(code)
 """
-WAYS = {"usual": ("0", "0"), "lean": ("1", "0"), "leave": ("0", "1"), "command": None}
+WAYS = {"usual": ("0", "0", "0"), "lean": ("1", "0", "0"), "frozen": ("0", "1", "0"),
+        "leave": ("0", "0", "1"), "command": None}
 
 
 def child_env() -> dict[str, str]:

@@ -50,6 +50,24 @@ assert "__dir__" not in vars(numpy)
     assert done.returncode == 0, done.stderr
 
 
+def test_imports_for_a_run_are_frozen_and_the_collector_back_on():
+    code = """
+import gc
+from fem_frac.app.startup import import_for_run
+import_for_run()
+import fem_frac.app.driver, numpy, scipy.sparse, skfem
+assert gc.isenabled(), "the collector left off"
+assert gc.get_freeze_count() > 10000, gc.get_freeze_count()
+class Cycle:
+    pass
+a = Cycle(); a.me = a
+del a
+assert gc.collect() >= 1, "a cycle made after the imports not collected"
+"""
+    done = python(code)
+    assert done.returncode == 0, done.stderr
+
+
 def test_the_command_keeps_its_output_code_and_exit_functions():
     # `check` prints its report through a pipe; an exit function registered before the
     # run still runs; the code is main()'s

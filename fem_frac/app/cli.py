@@ -191,15 +191,15 @@ def _plot(args) -> int:
 def console() -> None:
     """The ``fem-frac`` command (and ``python -m fem_frac``): :func:`main`; ``run`` and
     ``check`` skip what they do not use (:mod:`fem_frac.app.startup`): numpy's unread
-    submodules at scipy's import, the interpreter's teardown at exit. ``--help`` imports
-    neither numpy nor scipy; ``study`` (its workers, a dask cluster) and ``plot`` leave the
-    usual way."""
-    from .startup import import_scipy_lean, leave
+    submodules at scipy's import, the garbage collector's passes over what the imports
+    made, the interpreter's teardown at exit. ``--help`` imports neither numpy nor scipy;
+    ``study`` (its workers, a dask cluster) and ``plot`` leave the usual way."""
+    from .startup import import_for_run, leave
 
     if sys.argv[1:2] not in (["run"], ["check"]):
         sys.exit(main())
     if not {"-h", "--help"} & set(sys.argv):
-        import_scipy_lean()
+        import_for_run()
     leave(main())
 
 
