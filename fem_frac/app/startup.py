@@ -63,6 +63,8 @@ def import_for_run() -> None:
     gc.disable()
     try:
         import_scipy_lean()
+        import skfem  # noqa: F401  (imported by the first space a run builds)
+
         from ..config import loader  # noqa: F401
         from . import driver  # noqa: F401
     finally:
