@@ -42,7 +42,7 @@ if lean:
     import_scipy_lean()
 if frozen:
     gc.disable()
-    import fem_frac.config.loader, fem_frac.app.driver
+    import skfem, fem_frac.config.loader, fem_frac.app.driver  # as import_for_run
     gc.freeze()
     gc.enable()
 code = main()
