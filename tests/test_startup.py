@@ -52,9 +52,12 @@ assert "__dir__" not in vars(numpy)
 
 def test_imports_for_a_run_are_frozen_and_the_collector_back_on():
     code = """
-import gc
+import gc, os
 from fem_frac.app.startup import import_for_run
 import_for_run()
+assert os.environ["PYDANTIC_DISABLE_PLUGINS"] == "__all__"
+from pydantic.plugin._loader import get_plugins
+assert list(get_plugins()) == []
 import fem_frac.app.driver, numpy, scipy.sparse, skfem
 assert gc.isenabled(), "the collector left off"
 assert gc.get_freeze_count() > 10000, gc.get_freeze_count()
