@@ -167,13 +167,15 @@ def stage_table(runs: dict[str, list[Run]]) -> str:
     return "\n".join(lines)
 
 
-STARTUP = ("import fem_frac.app.cli, fem_frac.app.driver; "
-           "from fem_frac.solve.linalg import available_methods; available_methods()")
+STARTUP = ("import fem_frac.app.cli; from fem_frac.app.startup import import_for_run, leave; "
+           "import_for_run(); "
+           "from fem_frac.solve.linalg import available_methods; available_methods(); leave(0)")
 
 
 def startup(repeats: int) -> list[float]:
-    """CPU seconds of a process that only starts: the interpreter, the imports of a run
-    (``fem_frac.app.driver``) and the linear solver's lookup (MKL's library)."""
+    """CPU seconds of a process that only starts: the interpreter, the imports of a run as
+    the ``fem-frac`` command makes them (:func:`fem_frac.app.startup.import_for_run`), the
+    linear solver's lookup (MKL's library) and the command's exit."""
     out = []
     for _ in range(repeats):
         before = cpu_children()
