@@ -50,6 +50,26 @@ assert "__dir__" not in vars(numpy)
     assert done.returncode == 0, done.stderr
 
 
+def test_lean_import_where_scipy_has_no_array_api_layer():
+    # an older or different scipy: the import fails, numpy is put back, nothing is raised
+    code = """
+import sys
+import numpy
+listed = numpy.__dir__
+class NoLayer:  # its import raises ImportError, as where scipy has no such module
+    def find_spec(self, name, path=None, target=None):
+        if name == "scipy._lib._array_api":
+            raise ImportError(name)
+sys.meta_path.insert(0, NoLayer())
+from fem_frac.app.startup import import_scipy_lean
+import_scipy_lean()
+assert numpy.__dir__ is listed and "testing" in numpy.__all__
+assert "scipy._lib._array_api" not in sys.modules
+"""
+    done = python(code)
+    assert done.returncode == 0, done.stderr
+
+
 def test_imports_for_a_run_are_frozen_and_the_collector_back_on():
     code = """
 import gc, os

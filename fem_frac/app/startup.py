@@ -45,6 +45,8 @@ def import_scipy_lean() -> None:
     numpy.__all__ = [name for name in public if name not in UNREAD_SUBMODULES]
     try:
         import scipy._lib._array_api  # noqa: F401
+    except ImportError:  # a scipy without that layer (or a broken one): imported later
+        pass
     finally:
         numpy.__dir__, numpy.__all__ = listed, public
 
