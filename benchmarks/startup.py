@@ -10,7 +10,7 @@ Each round runs the case once in each of five ways, in a fresh process each, in 
 - ``lean``: scipy imported without numpy's unread submodules, usual exit;
 - ``frozen``: a run's modules imported with the garbage collector off, then frozen;
 - ``leave``: usual import, the exit without teardown;
-- ``command``: ``python -m fem_frac run`` (all three).
+- ``command``: ``python -m fem_frac run`` (all three, and pydantic's plugin search off).
 
 CPU is the child's user + system time (``getrusage(RUSAGE_CHILDREN)``). Reported per way:
 median and minimum over the rounds, and against ``usual`` the median of the paired
