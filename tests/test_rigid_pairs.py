@@ -261,38 +261,38 @@ def test_a_box_set_down_a_little_tilted_comes_to_rest(tilt):
     within collide._PATCH_TOLERANCE of the contact plane), so it settles flat instead of
     rocking on one corner, which the separation of the overlap it leaves kept going (1e-2 J
     after 2000 steps with a tolerance of 1e-6 of the radius)."""
-    dt, n = 1e-3, 400
-    ground = Plane(np.zeros(3), UP, restitution=0.5, friction=0.5)
-    law = PairLaw(0.5, 0.5)
+    dt = 1e-3
     bottom = stack()[0]
     top_z = bottom.position[2] + 0.25 + 0.2 + 1e-7
     top = box([0.2, 0.2, 0.2], position=[0.05, 0.0, top_z],
               orientation=exp_map([tilt, 0.0, 0.3]))
-    bodies = [bottom, top]
-    energy0 = sum(kinetic_energy(b) - b.mass * GRAVITY @ b.position for b in bodies)
-    peak = 0.0
-    for _ in range(n):
-        bodies = step_all(bodies, [False] * 2, [True] * 2, dt, GRAVITY, [ground], law=law)[0]
-        energy = sum(kinetic_energy(b) - b.mass * GRAVITY @ b.position for b in bodies)
-        peak = max(peak, energy - energy0)
+    bodies, peak = _stepped_on_the_ground([bottom, top], 400, dt)
     assert peak <= 100 * sum(b.mass for b in bodies) * G * G * dt * dt
     assert sum(kinetic_energy(b) for b in bodies) < 1e-12  # at rest
 
 
-def test_a_dropped_box_settles_on_a_stack_without_gaining_energy():
-    dt, n = 1e-3, 800
+def _stepped_on_the_ground(bodies, n: int, dt: float):
+    """``(bodies, peak)``: ``bodies`` after ``n`` steps on a ground plane (e = 0.5, mu = 0.5
+    for the ground and between bodies), and the largest rise of their energy (kinetic and
+    potential) over the steps."""
     ground = Plane(np.zeros(3), UP, restitution=0.5, friction=0.5)
-    law = PairLaw(0.5, 0.5)
+    law, k = PairLaw(0.5, 0.5), len(bodies)
+    energy0 = sum(kinetic_energy(b) - b.mass * GRAVITY @ b.position for b in bodies)
+    peak = 0.0
+    for _ in range(n):
+        bodies = step_all(bodies, [False] * k, [True] * k, dt, GRAVITY, [ground], law=law)[0]
+        energy = sum(kinetic_energy(b) - b.mass * GRAVITY @ b.position for b in bodies)
+        peak = max(peak, energy - energy0)
+    return bodies, peak
+
+
+def test_a_dropped_box_settles_on_a_stack_without_gaining_energy():
+    dt = 1e-3
     bodies = stack((0.0, 0.1, -0.05))[:2]
     top = bodies[-1].position[2] + 0.2
     bodies.append(box([0.2, 0.2, 0.2], position=[0.05, 0.0, top + 0.2 + 0.05],
                       orientation=exp_map([0.0, 0.0, 0.3]), velocity=[0.0, 0.0, -0.5]))
-    energy0 = sum(kinetic_energy(b) - b.mass * GRAVITY @ b.position for b in bodies)
-    peak = 0.0
-    for _ in range(n):
-        bodies = step_all(bodies, [False] * 3, [True] * 3, dt, GRAVITY, [ground], law=law)[0]
-        energy = sum(kinetic_energy(b) - b.mass * GRAVITY @ b.position for b in bodies)
-        peak = max(peak, energy - energy0)
+    bodies, peak = _stepped_on_the_ground(bodies, 800, dt)
     # energy may rise only by what the time-of-impact cut leaves: a penetration of at most
     # g dt^2 / 2 turned into height by the projection, per impact (a few dozen here)
     assert peak <= 100 * sum(b.mass for b in bodies) * G * G * dt * dt
