@@ -121,3 +121,19 @@ def test_module_run_writes_a_complete_series(tmp_path):
     pvd = (out / "cantilever.pvd").read_text()
     assert pvd.rstrip().endswith("</VTKFile>")
     assert (out / "summary.json").read_text().rstrip().endswith("}")
+
+
+def test_an_interrupt_during_the_imports_is_one_line():
+    code = """
+import sys
+import fem_frac.app.startup as startup
+def interrupted():
+    raise KeyboardInterrupt
+startup.import_for_run = interrupted
+sys.argv = ["fem-frac", "run", sys.argv[1]]
+from fem_frac.app.cli import console
+console()
+"""
+    done = python(code, str(CASE))
+    assert done.returncode == 130
+    assert done.stderr.strip() == "interrupted"

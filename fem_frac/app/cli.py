@@ -199,7 +199,11 @@ def console() -> None:
     if sys.argv[1:2] not in (["run"], ["check"]):
         sys.exit(main())
     if not {"-h", "--help"} & set(sys.argv):
-        import_for_run()
+        try:
+            import_for_run()
+        except KeyboardInterrupt:  # as main() answers one, before any output
+            print("interrupted", file=sys.stderr)
+            sys.exit(130)
     leave(main())
 
 
