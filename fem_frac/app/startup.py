@@ -19,7 +19,7 @@ import sys
 # with the charset_normalizer it loads, and testing 9 ms of the 116 ms of importing
 # scipy.sparse, ``python -X importtime``). scipy reads them from that copy only in its own
 # test helpers. (numpy.ma, random, polynomial and ctypeslib are listed too, but a run
-# imports them anyway: ``np.unique``, scipy's own modules, the PARDISO binding.)
+# imports them anyway: ``np.unique``, scipy's own modules, scikit-fem, gmsh's API.)
 UNREAD_SUBMODULES = frozenset({"f2py", "testing"})
 
 
