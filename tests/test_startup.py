@@ -137,3 +137,20 @@ console()
     done = python(code, str(CASE))
     assert done.returncode == 130
     assert done.stderr.strip() == "interrupted"
+
+
+def test_an_import_that_fails_before_the_run_is_left_to_main():
+    # main() imports the same modules again, inside its own error handling
+    code = """
+import sys
+import fem_frac.app.startup as startup
+def broken():
+    raise ImportError("no module named skfem")
+startup.import_for_run = broken
+sys.argv = ["fem-frac", "check", sys.argv[1]]
+from fem_frac.app.cli import console
+console()
+"""
+    done = python(code, str(CASE))
+    assert done.returncode == 0, done.stderr
+    assert "cantilever" in done.stdout

@@ -204,6 +204,8 @@ def console() -> None:
         except KeyboardInterrupt:  # as main() answers one, before any output
             print("interrupted", file=sys.stderr)
             sys.exit(130)
+        except ImportError:  # a broken installation: main() imports again and says so
+            pass
     leave(main())
 
 
