@@ -7,8 +7,9 @@
 run CASE -o OUTDIR/<stem> -q --overwrite`` (stability__<stem>); exit codes in OUTDIR/runs.json.
 Each run starts in the checkout that holds this script, so that it runs that checkout's
 fem_frac (``-m`` puts the working directory first on ``sys.path``, before ``PYTHONPATH``):
-to run an older commit, run the script of a worktree of it, ``python
-/tmp/old/benchmarks/compare_cases.py run OUT``; GLOBs are relative to that checkout.
+to run an older commit, run the script of a worktree of it (``git worktree add OLD REV``,
+then ``python OLD/benchmarks/compare_cases.py run OUT``); GLOBs are relative to that
+checkout.
 ``compare``: per case of REF, exit codes, files, .pvd, .vtu, history.csv, summary.json (no timing,
 paths, versions); exit 1 on a mismatch. Floats: |a - b| <= max(rtol * scale, atol), scale the
 array's largest magnitude (history's energies share one; ratios have 1).

@@ -190,10 +190,10 @@ def _plot(args) -> int:
 
 def console() -> None:
     """The ``fem-frac`` command (and ``python -m fem_frac``): :func:`main`; ``run`` and
-    ``check`` skip what they do not use (:mod:`fem_frac.app.startup`): numpy's unread
-    submodules at scipy's import, the garbage collector's passes over what the imports
-    made, the interpreter's teardown at exit. ``--help`` imports neither numpy nor scipy;
-    ``study`` (its workers, a dask cluster) and ``plot`` leave the usual way."""
+    ``check`` skip what they do not use (:mod:`fem_frac.app.startup`: numpy's unread
+    submodules, pydantic's plugin search, the collector's passes over the imports, the
+    interpreter's teardown). ``--help`` imports neither numpy nor scipy; ``study`` (its
+    workers, a dask cluster) and ``plot`` leave the usual way."""
     from .startup import import_for_run, leave
 
     if sys.argv[1:2] not in (["run"], ["check"]):
