@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+import scipy.sparse as sp
 
 from fem_frac.fem.operators import strain_operator
 from fem_frac.fem.reconnect import changed_tets, reconnect
@@ -42,8 +43,10 @@ def test_reconnected_operators_equal_a_fresh_assembly(distortion, per_element):
             scale = np.where(np.arange(old.n_tets) % 2 == 0, 1.0, 0.25)
             tangent = np.ascontiguousarray(D[:, :, None, None] * scale[None, None, :, None])
         op = strain_operator(old_space)
-        op_new, k_new = reconnect(op, op.stiffness(tangent), tangent, new_space,
-                                  np.asarray(old.tets), np.asarray(new.tets), changed)
+        op_new, k_new, diagonal = reconnect(op, op.stiffness(tangent), tangent, new_space,
+                                            np.asarray(old.tets), np.asarray(new.tets),
+                                            changed)
+        np.testing.assert_array_equal(diagonal, k_new.diagonal())
         fresh = strain_operator(new_space)
         for a, b in ((op_new.matrix, fresh.matrix),):
             np.testing.assert_array_equal(a.indptr, b.indptr)
@@ -112,12 +115,14 @@ def test_reconnected_mass_equals_a_fresh_assembly(distortion):
     density = np.linspace(1000.0, 8000.0, 64 * 6)  # per element: the tets' own masses
     steps = _cracked(distortion)
     mass = consistent_mass(build_space(steps[0][0], 1), density)
+    diagonal = None  # a fresh assembly's: every entry searched, then the touched rows
     for old, new, transfer in steps:
         changed = changed_tets(old.tets, new.tets, transfer.node_map)
         space = build_space(new, 1)
         me = element_scalar_mass(space, density)
-        mass = reconnect_mass(mass, me, np.asarray(old.tets), np.asarray(new.tets), changed,
-                              new.n_points)
+        mass, diagonal = reconnect_mass(mass, me, np.asarray(old.tets), np.asarray(new.tets),
+                                        changed, new.n_points, diagonal)
+        np.testing.assert_array_equal(diagonal, mass.diagonal())
         fresh = consistent_mass(space, density).tocsr()
         scale = np.abs(fresh.diagonal()).max()
         assert abs(mass - fresh).max() <= 10 * np.finfo(float).eps * scale
@@ -138,3 +143,52 @@ def test_a_reconnected_space_reuses_the_old_geometry_to_the_bit(order):
         np.testing.assert_array_equal(reused.gradients(), fresh.gradients())
         np.testing.assert_array_equal(reused.element_dofs, fresh.element_dofs)
         np.testing.assert_array_equal(reused.node_points, fresh.node_points)
+
+
+@pytest.mark.parametrize("distortion", [0.0, 0.15])
+def test_the_touched_rows_drop_what_a_search_of_every_entry_drops(distortion):
+    """Through two insertions, the stiffness and the consistent mass with the diagonal
+    carried from one reconnection to the next (only the rows an insertion touches searched
+    for cancelled couplings) are the same matrices, to the bit, as with every entry
+    searched each time."""
+    from fem_frac.fem.mass import consistent_mass, element_scalar_mass
+    from fem_frac.fem.reconnect import reconnect_mass
+
+    density = np.linspace(1000.0, 8000.0, 64 * 6)
+    steps = _cracked(distortion)
+    space = build_space(steps[0][0], 1)
+    op0 = strain_operator(space)
+    k0, m0 = op0.stiffness(D).tocsr(), consistent_mass(space, density)
+    carried = [(op0, k0, None, m0, None)]
+    searched = [(op0, k0, None, m0, None)]
+    for old, new, transfer in steps:
+        changed = changed_tets(old.tets, new.tets, transfer.node_map)
+        new_space = build_space(new, 1)
+        me = element_scalar_mass(new_space, density)
+        for chain, keep in ((carried, True), (searched, False)):
+            op, k, dk, m, dm = chain[-1]
+            args = (np.asarray(old.tets), np.asarray(new.tets), changed)
+            op, k, dk = reconnect(op, k, D, new_space, *args, dk if keep else None)
+            m, dm = reconnect_mass(m, me, *args, new.n_points, dm if keep else None)
+            chain.append((op, k, dk, m, dm))
+    assert carried[-1][2] is not None
+    for a, b in zip(carried[1:], searched[1:], strict=True):
+        for x, y in ((a[1], b[1]), (a[3], b[3])):
+            np.testing.assert_array_equal(x.indptr, y.indptr)
+            np.testing.assert_array_equal(x.indices, y.indices)
+            np.testing.assert_array_equal(x.data, y.data)
+        np.testing.assert_array_equal(a[2], b[2])
+        np.testing.assert_array_equal(a[4], b[4])
+
+
+def test_a_larger_diagonal_searches_every_entry():
+    """Where the new largest diagonal entry exceeds the old one, an entry outside the
+    touched rows may fall under the threshold: every entry is searched then."""
+    from fem_frac.fem.reconnect import DROP, _without_cancelled
+
+    old = sp.csr_matrix(np.array([[1.0, 0.0, 0.0], [0.0, 1.0, 2e-13], [0.0, 2e-13, 1.0]]))
+    delta = sp.csr_matrix(np.array([[3.0, 0.0, 0.0], [0.0, 0.0, 0.0], [0.0, 0.0, 0.0]]))
+    assert 2e-13 > DROP * 1.0 and 2e-13 <= DROP * 4.0
+    out, diagonal = _without_cancelled((old + delta).tocsr(), delta, old.diagonal())
+    assert out.nnz == 3  # the couplings of rows 1 and 2, untouched, dropped
+    np.testing.assert_array_equal(diagonal, [4.0, 1.0, 1.0])

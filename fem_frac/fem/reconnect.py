@@ -11,7 +11,11 @@ the same values in new columns, and
 which costs a pass over K's nonzeros instead of the triple product over the whole mesh.
 Couplings that only changed tets carried cancel to round-off; they are dropped (below
 ``DROP`` of the largest diagonal entry), so the pattern is that of a fresh assembly. The
-values equal a fresh assembly's to round-off (``tests/test_reconnect.py``).
+values equal a fresh assembly's to round-off (``tests/test_reconnect.py``). A matrix this
+module made keeps no entry within ``DROP`` of its own largest diagonal entry, and an
+insertion only lowers the diagonal (a vertex's tets are shared with its copies), so the
+next insertion looks for such entries only in the rows it changes
+(:func:`_without_cancelled`).
 """
 
 from __future__ import annotations
@@ -73,11 +77,13 @@ def _padded(a: sp.csr_matrix, n: int) -> sp.csr_matrix:
 
 
 def reconnect(op: StrainOperator, stiffness: sp.csr_matrix, tangent: np.ndarray, space,
-              old_tets: np.ndarray, new_tets: np.ndarray,
-              changed: np.ndarray) -> tuple[StrainOperator, sp.csr_matrix]:
-    """The strain operator on ``space`` (the new mesh's) and its stiffness for the elastic
-    ``tangent`` (Mandel ``(6, 6)`` or ``(6, 6, n_tets, 1)``), from ``op`` and ``stiffness``
-    of the old mesh (module docstring)."""
+              old_tets: np.ndarray, new_tets: np.ndarray, changed: np.ndarray,
+              diagonal: np.ndarray | None = None
+              ) -> tuple[StrainOperator, sp.csr_matrix, np.ndarray]:
+    """The strain operator on ``space`` (the new mesh's), its stiffness for the elastic
+    ``tangent`` (Mandel ``(6, 6)`` or ``(6, 6, n_tets, 1)``) and that stiffness's diagonal,
+    from ``op`` and ``stiffness`` of the old mesh (module docstring). ``diagonal``: the one
+    this function returned with ``stiffness``, ``None`` for a stiffness assembled afresh."""
     n = space.n_dofs
     m = old_tets.shape[0]
     base = reconnected_matrix(op.matrix, old_tets, new_tets, changed, n)
@@ -86,23 +92,21 @@ def reconnect(op: StrainOperator, stiffness: sp.csr_matrix, tangent: np.ndarray,
     d = tangent if tangent.ndim == 2 else tangent[:, :, changed]
     w = _weighted_tangent(d, weights[changed])
     before, after = op.matrix[rows], base[rows]
-    delta = after.T @ (w @ after) - _padded((before.T @ (w @ before)).tocsr(), n)
-    k = (_padded(stiffness.tocsr(), n) + delta).tocsr()
-    scale = float(np.abs(k.diagonal()).max()) if n else 0.0
-    k.data[np.abs(k.data) <= DROP * scale] = 0.0
-    k.eliminate_zeros()
-    k.sort_indices()
-    return StrainOperator(space, base, weights, "standard", _base=base), k
+    delta = (after.T @ (w @ after) - _padded((before.T @ (w @ before)).tocsr(), n)).tocsr()
+    k, diagonal = _without_cancelled((_padded(stiffness.tocsr(), n) + delta).tocsr(), delta,
+                                     diagonal)
+    return StrainOperator(space, base, weights, "standard", _base=base), k, diagonal
 
 
 def reconnect_mass(mass: sp.csr_matrix, element_mass: np.ndarray, old_tets: np.ndarray,
-                   new_tets: np.ndarray, changed: np.ndarray, n_nodes: int) -> sp.csr_matrix:
-    """The consistent mass (vector, ``3 n_nodes`` square) of a P1 mesh a crack reconnected,
-    from ``mass``, the old mesh's: the ``changed`` tets' scalar element masses
-    ``element_mass`` (``(n_tets, 4, 4)``, unchanged by the crack) leave their old vertices
-    for their new ones, ``M_new = M_old - sum_changed M_e (old) + sum_changed M_e (new)``,
-    as :func:`reconnect` does for the stiffness (couplings that cancel dropped below
-    ``DROP`` of the largest diagonal entry). Equal to a fresh
+                   new_tets: np.ndarray, changed: np.ndarray, n_nodes: int,
+                   diagonal: np.ndarray | None = None) -> tuple[sp.csr_matrix, np.ndarray]:
+    """The consistent mass (vector, ``3 n_nodes`` square) of a P1 mesh a crack reconnected
+    and its diagonal, from ``mass``, the old mesh's: the ``changed`` tets' scalar element
+    masses ``element_mass`` (``(n_tets, 4, 4)``, unchanged by the crack) leave their old
+    vertices for their new ones, ``M_new = M_old - sum_changed M_e (old) + sum_changed M_e
+    (new)``, as :func:`reconnect` does for the stiffness (couplings that cancel dropped below
+    ``DROP`` of the largest diagonal entry; ``diagonal`` as there). Equal to a fresh
     :func:`~fem_frac.fem.mass.consistent_mass` to round-off (``tests/test_reconnect.py``)."""
     from .mass import _times_identity3, element_pairs
 
@@ -111,9 +115,47 @@ def reconnect_mass(mass: sp.csr_matrix, element_mass: np.ndarray, old_tets: np.n
     values = np.concatenate([me.ravel(), -me.ravel()])
     delta = sp.csr_matrix((values, (np.concatenate([r1, r0]), np.concatenate([c1, c0]))),
                           shape=(n_nodes, n_nodes))
-    out = (_padded(mass.tocsr(), 3 * n_nodes) + _times_identity3(delta)).tocsr()
-    scale = float(np.abs(out.diagonal()).max()) if n_nodes else 0.0
-    out.data[np.abs(out.data) <= DROP * scale] = 0.0
-    out.eliminate_zeros()
-    out.sort_indices()
-    return out
+    delta = _times_identity3(delta).tocsr()
+    return _without_cancelled((_padded(mass.tocsr(), 3 * n_nodes) + delta).tocsr(), delta,
+                              diagonal)
+
+
+def _without_cancelled(a: sp.csr_matrix, delta: sp.csr_matrix, diagonal: np.ndarray | None
+                       ) -> tuple[sp.csr_matrix, np.ndarray]:
+    """``a`` (``old + delta``, as the sum made it) without its entries of at most ``DROP``
+    times its largest diagonal entry, sorted, and its diagonal.
+
+    ``diagonal``: ``old``'s, where ``old`` came from here, else ``None``. Then every entry of
+    ``old`` exceeds ``DROP`` times its own largest diagonal entry, and the entries outside
+    the rows ``delta`` touches are ``old``'s: where ``a``'s largest diagonal entry is no
+    larger (an insertion shares a vertex's tets with its copies, so it only lowers the
+    diagonal), none of those is dropped, and only the touched rows are searched, with the
+    diagonal read there. The same entries are dropped as by a search of every entry: the
+    same matrix, to the bit (``tests/test_reconnect.py``)."""
+    n = a.shape[0]
+    rows = np.flatnonzero(np.diff(delta.indptr))
+    start = a.indptr[rows].astype(np.int64)
+    count = a.indptr[rows + 1] - start
+    entries = np.repeat(start - np.cumsum(count) + count, count) + np.arange(count.sum())
+    owner = np.repeat(rows, count)
+    if diagonal is not None:
+        new = np.zeros(n)
+        new[:diagonal.size] = diagonal
+        new[rows] = 0.0
+        on = a.indices[entries] == owner
+        new[owner[on]] = a.data[entries[on]]
+        scale = float(np.abs(new).max()) if n else 0.0
+        before = float(np.abs(diagonal).max()) if diagonal.size else 0.0
+    if diagonal is None or not 0.0 < scale <= before:  # every entry searched
+        new = a.diagonal()
+        scale = float(np.abs(new).max()) if n else 0.0
+        a.data[np.abs(a.data) <= DROP * scale] = 0.0
+        a.eliminate_zeros()
+    else:
+        small = entries[np.abs(a.data[entries]) <= DROP * scale]
+        if small.size:
+            a.data[small] = 0.0
+            a.eliminate_zeros()
+    new[np.abs(new) <= DROP * scale] = 0.0  # as the entries themselves
+    a.sort_indices()
+    return a, new

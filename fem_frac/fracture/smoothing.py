@@ -254,9 +254,7 @@ def _reachable_within(old: sp.csr_matrix, neighbours: np.ndarray, rows: np.ndarr
     found = _pair_table(owner, sub.indices, m, neighbours[sub.indices])
     itself = np.repeat(np.arange(n, dtype=np.int64), width)
     target = np.where(found >= 0, found, itself.reshape(n, width)).ravel()
-    # float64 weights: scipy's graph routines take them as they are (int8 ones were
-    # converted, which copied the whole graph on every call)
-    graph = sp.csr_matrix((np.ones(target.size), target,
+    graph = sp.csr_matrix((np.ones(target.size), target,  # float64: scipy copies any other
                            np.arange(0, target.size + 1, width, dtype=np.int64)),
                           shape=(n, n))
     # the graph is symmetric (a pair's neighbour in its row has it as a neighbour), so its

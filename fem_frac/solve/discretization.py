@@ -129,31 +129,33 @@ def _changed(mesh: Mesh, previous: tuple | None) -> np.ndarray | None:
 
 def _reconnected(recipe: Recipe, space: Space, tangent: np.ndarray, previous: tuple | None,
                  changed: np.ndarray | None):
-    """``(strain operator, stiffness)`` of ``space`` from the ``previous`` discretization's
-    (:mod:`fem_frac.fem.reconnect`), or ``None`` where that does not apply: quadratic tets,
-    the averaged formulation, or a mesh that is not the old one reconnected (``changed``:
-    :func:`_changed`)."""
+    """``(strain operator, stiffness, its diagonal)`` of ``space`` from the ``previous``
+    discretization's (:mod:`fem_frac.fem.reconnect`), or ``None`` where that does not
+    apply: quadratic tets, the averaged formulation, or a mesh that is not the old one
+    reconnected (``changed``: :func:`_changed`)."""
     from ..fem.reconnect import reconnect
 
     if changed is None or recipe.order != 1 or recipe.formulation != "standard":
         return None
     old, _ = previous
     return reconnect(old.ops.strain_operator, old.ops.stiffness, tangent, space,
-                     np.asarray(old.mesh.tets), np.asarray(space.mesh.tets), changed)
+                     np.asarray(old.mesh.tets), np.asarray(space.mesh.tets), changed,
+                     old.ops.stiffness_diagonal)
 
 
 def _reconnected_mass(space: Space, element_mass: np.ndarray, previous: tuple | None,
-                      changed: np.ndarray | None) -> sp.csr_matrix | None:
-    """The consistent mass of ``space`` from the ``previous`` discretization's
-    (:func:`~fem_frac.fem.reconnect.reconnect_mass`: linear tets, a mesh the old one
-    reconnected, ``changed`` as :func:`_changed`), else ``None``."""
+                      changed: np.ndarray | None) -> tuple | None:
+    """The consistent mass of ``space`` and its diagonal from the ``previous``
+    discretization's (:func:`~fem_frac.fem.reconnect.reconnect_mass`: linear tets, a mesh
+    the old one reconnected, ``changed`` as :func:`_changed`), else ``None``."""
     from ..fem.reconnect import reconnect_mass
 
     if changed is None or space.order != 1:
         return None
     old = previous[0]
     return reconnect_mass(old.ops.mass, element_mass, np.asarray(old.mesh.tets),
-                          np.asarray(space.mesh.tets), changed, space.n_nodes)
+                          np.asarray(space.mesh.tets), changed, space.n_nodes,
+                          old.ops.mass_diagonal)
 
 
 def _seed(previous: tuple | None, space: Space, ops: Operators, constrained: Constrained):
@@ -254,8 +256,9 @@ def build_operators(recipe: Recipe, space: Space, materials: ElementMaterials,
         if d.ndim == 4:  # per element: one value for every quadrature point
             d = np.ascontiguousarray(np.broadcast_to(d, (6, 6) + space.basis.dx.shape))
         reused = _reconnected(recipe, space, d, previous, changed)
+        diagonals = [None, None]  # of a stiffness and a mass reconnect made
         if reused is not None:
-            op, k = reused
+            op, k, diagonals[0] = reused
         else:
             op = strain_operator(space, recipe.formulation)
             k = op.stiffness(d)
@@ -283,8 +286,10 @@ def build_operators(recipe: Recipe, space: Space, materials: ElementMaterials,
                 element_mass = None if changed is None else previous[0].ops.element_mass
                 if element_mass is None:
                     element_mass = element_scalar_mass(space, materials.density)
-                mass = _reconnected_mass(space, element_mass, previous, changed)
-                if mass is None:
+                reused = _reconnected_mass(space, element_mass, previous, changed)
+                if reused is not None:
+                    mass, diagonals[1] = reused
+                else:
                     mass = consistent_mass(space, materials.density, element_mass)
             if analysis.rayleigh is not None:
                 r = analysis.rayleigh
@@ -294,7 +299,7 @@ def build_operators(recipe: Recipe, space: Space, materials: ElementMaterials,
         with timer("cohesive faces"):
             interface = build_interface(recipe.cohesive, space.mesh, space,
                                         materials.youngs_modulus)
-    return Operators(op, k, mass, damping, interface, element_mass)
+    return Operators(op, k, mass, damping, interface, element_mass, *diagonals)
 
 
 def scheme(analysis, dt: float) -> integrators.Implicit:

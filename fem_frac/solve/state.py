@@ -33,6 +33,10 @@ class Operators:
     damping: sp.csr_matrix | None = None
     interface: Interface | None = None
     element_mass: np.ndarray | None = None
+    # the diagonals of a stiffness and of a consistent mass that a crack's reconnection made
+    # (fem.reconnect, which reads them at the next one), None where assembled afresh
+    stiffness_diagonal: np.ndarray | None = None
+    mass_diagonal: np.ndarray | None = None
 
     @property
     def weights(self) -> np.ndarray:
