@@ -147,6 +147,40 @@ def test_pieces_that_left_solve_through_the_old_factor():
     assert f is not None and bordered.restricted(f, every) is None
 
 
+@pytest.mark.parametrize("method", available_methods())
+def test_copies_off_a_support_are_bordered_as_dofs_of_their_own(monkeypatch, method):
+    """A split vertex held in the base mesh whose copies the new mesh leaves free (a copy
+    off the support that holds the vertex): their dofs tie to no base dof (-1), E's rows
+    are zero there, and they are bordered like the copies; through a second insertion
+    too (the -1 composed). Solves as the new free-dof matrix does."""
+    monkeypatch.setattr(bordered, "SHARE", 1e9)
+    monkeypatch.setattr(bordered, "COPIES", 1e9)
+    m0 = structured_box((6, 4, 4))
+    m1, t1 = crack(m0, 0.5)
+    m2, t2 = crack(m1, 2 / 6)
+    split = np.unique(np.asarray(t1.node_map)[m0.n_points:])  # the vertices t1 split
+
+    def held_system(mesh, extra):
+        space = build_space(mesh, 1)
+        k = stiffness(space, TANGENT).tocsr()
+        held = np.union1d(np.flatnonzero(np.abs(mesh.points[:, 0]) < 1e-12), extra)
+        free = np.setdiff1d(np.arange(space.n_dofs), (3 * held[:, None] + np.arange(3)))
+        return k[free][:, free].tocsr(), free
+
+    (a0, f0), (a1, f1), (a2, f2) = (held_system(m, split) for m in (m0, m1, m2))
+    t01 = tie(f0, f1, np.asarray(t1.node_map), 3 * m0.n_points)
+    t12 = tie(f1, f2, np.asarray(t2.node_map), 3 * m1.n_points)
+    assert np.count_nonzero(t01 < 0) == 3 * (m1.n_points - m0.n_points) > 0
+    one = bordered_factor(factorize(a0, method), t01, a1)
+    two = bordered_factor(one, t12, a2)
+    assert one is not None and two is not None and two.root is one.root
+    rng = np.random.default_rng(6)
+    for a, f in ((a1, one), (a2, two)):
+        b = rng.standard_normal((a.shape[0], 2))
+        exact = spla.spsolve(a.tocsc(), b)
+        assert np.abs(f.solve(b) - exact).max() <= 1e-10 * np.abs(exact).max()
+
+
 def test_solves_as_newmarks_jacobian_does_through_a_chain_of_insertions(monkeypatch):
     """With inertia the Jacobian is ``K + c M``: the element mass matrices, like the
     stiffness's, are the old mesh's scattered to new dofs, so the same algebra holds. ``c``

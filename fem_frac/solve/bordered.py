@@ -6,7 +6,9 @@ so their matrices do not change, only the dofs they are scattered to. Let ``tie`
 free dof of the new mesh to the free dof of the *base* mesh it copies (several new dofs may
 tie to one base dof: a vertex and its copies), ``E (n', n)`` the matrix of that map
 (``E[i, tie[i]] = 1``) and ``F (n', m)`` the unit columns of the ``m`` *copies*: every new
-dof tied to a base dof except the first one. ``T = [E, F]`` is square and invertible, and
+dof tied to a base dof except the first one, and every new dof tied to none (``tie = -1``:
+a copy of a vertex split off the support that held it, its dof constrained in the base;
+its row of ``E`` is zero). ``T = [E, F]`` is square and invertible, and
 because tying the copies together gives back the base mesh,
 
     T^T A' T = [[A, C], [C^T, D]],    A = E^T A' E (the base Jacobian),
@@ -90,19 +92,20 @@ def bordered_factor(base: Factorization, tie: np.ndarray, matrix: sp.csr_matrix,
     copies' columns are taken, not the free-dof matrix (the same entries)."""
     local = np.asarray(tie, dtype=np.int64)
     root, prior, tie = base, None, local
-    if hasattr(base, "tie"):  # compose with the meshes between
-        root, prior, tie = base.root, base, base.tie[local]
+    if hasattr(base, "tie"):  # compose with the meshes between (-1 stays -1)
+        root, prior = base.root, base
+        tie = np.where(local >= 0, base.tie[np.maximum(local, 0)], -1)
     start = time.perf_counter()
     n = root.n
-    if tie.max() >= n or np.any(np.bincount(tie, minlength=n) == 0):
+    if tie.size == 0 or tie.max() >= n or np.any(np.bincount(tie[tie >= 0], minlength=n) == 0):
         return None  # not every base dof has a copy left, or one that is not the base's
     copies = _copies(tie)
     m = copies.size
     if m > copies_limit(root):
         return None
     columns, d = _copy_columns(sp.csr_matrix(matrix), copies, free)
-    tied = sp.csr_matrix((np.ones(tie.size), (tie, np.arange(tie.size))),
-                         shape=(n, tie.size))  # E^T
+    own = np.flatnonzero(tie >= 0)
+    tied = sp.csr_matrix((np.ones(own.size), (tie[own], own)), shape=(n, tie.size))  # E^T
     c = sp.csc_matrix(tied @ columns)  # (n, m), a few entries a column
     c.sort_indices()
     new, old = _unchanged_columns(prior, local[copies], c)
@@ -185,21 +188,28 @@ def _solve(root, tied, tie, copies, c, cho, g, slot):
         b2 = b[:, None] if one else b
         rhs = np.asarray(tied @ b2)
         if not copies.size:
-            x = root.solve(rhs)[tie]
+            x = root.solve(rhs)[tie]  # (no copies: every dof tied)
         elif halves is not None:  # y = R^T u, C^T y = Y^T u, w = R^T (u - Y z)
             forward, backward = halves
             u = forward(rhs)
             z = la.cho_solve(cho, b2[copies] - (g.T @ u)[slot])
-            x = backward(u - g @ _spread(z, slot, g.shape[1]))[tie]
+            x = _tied(backward(u - g @ _spread(z, slot, g.shape[1])), tie)
             x[copies] += z
         else:
             y = root.solve(rhs)
             z = la.cho_solve(cho, b2[copies] - c.T @ y)
-            x = (y - g @ _spread(z, slot, g.shape[1]))[tie]
+            x = _tied(y - g @ _spread(z, slot, g.shape[1]), tie)
             x[copies] += z
         return x[:, 0] if one else x
 
     return solve
+
+
+def _tied(w: np.ndarray, tie: np.ndarray) -> np.ndarray:
+    """``E w``: each new dof's base value, zero for the dofs tied to none."""
+    x = w[np.maximum(tie, 0)]
+    x[tie < 0] = 0.0
+    return x
 
 
 def _spread(z: np.ndarray, slot: np.ndarray, live: int) -> np.ndarray:
@@ -259,9 +269,10 @@ def _solve_into(root, b: np.ndarray, out: np.ndarray) -> None:
 
 def _copies(tie: np.ndarray) -> np.ndarray:
     """Sorted new dofs that are copies: the first new dof tied to each base dof represents
-    it, the others copy it."""
+    it, the others copy it; a dof tied to none (-1: a vertex's copy off the support that
+    holds the vertex) is bordered too."""
     order = np.argsort(tie, kind="stable")
-    first = np.r_[True, tie[order][1:] != tie[order][:-1]]
+    first = np.r_[True, tie[order][1:] != tie[order][:-1]] & (tie[order] >= 0)
     return np.sort(order[~first])
 
 

@@ -165,9 +165,8 @@ def _seed(previous: tuple | None, space: Space, ops: Operators, constrained: Con
     length fixed, are the old mesh's scattered to new dofs), or that pieces left
     (:func:`~fem_frac.solve.bordered.restricted`), ``None`` where it does not apply: no
     factorization made there yet, cohesive faces (whose secant stiffness changes the
-    iteration matrix anyway), P2 (mid-edge nodes renumbered), a free dof that copies a
-    constrained one (a split that leaves a copy off a support), or pieces that left sharing
-    a vertex with the rest."""
+    iteration matrix anyway), P2 (mid-edge nodes renumbered), or pieces that left sharing
+    a vertex with the rest or with a free dof that copies a constrained one."""
     if previous is None or ops.interface is not None or space.order != 1:
         return None
     old, node_map = previous
@@ -180,10 +179,12 @@ def _seed(previous: tuple | None, space: Space, ops: Operators, constrained: Con
     index = np.full(old.space.n_dofs, -1, dtype=np.int64)
     index[old.constrained.free] = np.arange(old.constrained.free.size)
     tie = index[dofs[constrained.free]]
-    if not np.all(tie >= 0):
-        return None  # a free dof whose vertex's dof was constrained
     if space.mesh.n_tets == old.mesh.n_tets:
-        return factor, tie  # a crack insertion: every tet kept, copies tied to vertices
+        # a crack insertion: every tet kept, copies tied to vertices; a free dof whose
+        # vertex's dof was constrained (a copy split off a support) tied to none (-1)
+        return factor, tie
+    if not np.all(tie >= 0):
+        return None  # pieces left, and a free dof whose vertex's dof was constrained
     # pieces left (fem_frac.fracture.topology.extract): exact through the old factor where
     # they shared no vertex with the rest and the rest kept its free dofs
     kept = np.zeros(old.mesh.n_points, dtype=bool)
