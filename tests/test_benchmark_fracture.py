@@ -15,7 +15,8 @@ def test_the_insertion_batch_benchmark_runs():
     table = out.stdout
     assert "failed" not in table
     for row in ("**floor**", "**open (stage.open)**", "**rebuild (rediscretize)**",
-                "**refactorization**", "**support check**", "**batch warm**"):
+                "**refactorization**", "**support check**", "**batch warm**",
+                "**second batch warm**"):
         assert row in table
 
 
