@@ -22,10 +22,12 @@ For each case, in fresh subprocesses:
   in each round, before the round's runs; the table gives the least and the spread (max -
   min) of the rounds' floors.
 
-**ideal** = iterations x floor; the table reports CPU / ideal and, for the stages that take
-the most wall time, their seconds in units of the ideal and their share of the run. A case
-whose body turns rigid at once (``whole_body: true``) has no finite-element work and no
-ratio.
+**ideal** = iterations x floor; the table reports CPU / ideal (the least CPU time over the
+least floor, which may come from different rounds), each round's own ratio (its run's CPU
+time over its floor: the machine's speed drifts between rounds minutes apart, by up to 2x,
+and moves a round's floor and runs alike), and, for the stages that take the most wall
+time, their seconds in units of the ideal and their share of the run. A case whose body
+turns rigid at once (``whole_body: true``) has no finite-element work and no ratio.
 """
 
 from __future__ import annotations
@@ -201,10 +203,20 @@ def _floor_cell(r: dict) -> str:
     return f"{fl * 1e3:.2f}{spread}"
 
 
+def _rounds_cell(r: dict) -> str:
+    """Each round's CPU / ideal (its run's CPU time over that round's floor): the least and
+    the largest, where every round has both."""
+    floors, cpu = r.get("floors", []), r.get("cpu", [])
+    if not r.get("iterations") or len(floors) != len(cpu) or len(cpu) < 2:
+        return "-"
+    ratios = [c / (r["iterations"] * f) for c, f in zip(cpu, floors, strict=True)]
+    return f"{min(ratios):.0f}-{max(ratios):.0f}"
+
+
 def table(rows: list[dict]) -> str:
     head = ("| case | tets | dofs | steps | iterations | batches | floor ms min (spread) | ideal s "
-            "| CPU s min (spread) | wall s min | CPU / ideal | where the wall time goes: stage "
-            "s (x ideal, share) |")
+            "| CPU s min (spread) | wall s min | CPU / ideal | by round | where the wall time "
+            "goes: stage s (x ideal, share) |")
     lines = [head, "|" + "---|" * (head.count("|") - 1)]
     for r in rows:
         name = Path(r["case"]).stem
@@ -218,7 +230,7 @@ def table(rows: list[dict]) -> str:
                  f"{r['iterations']:,}", str(r["batches"]),
                  _floor_cell(r), f"{ideal:.3f}" if ideal else "-",
                  f"{cpu.min():.2f} ({np.ptp(cpu):.2f})", f"{wall.min():.2f}",
-                 f"**{cpu.min() / ideal:.0f}**" if ideal else "-",
+                 f"**{cpu.min() / ideal:.0f}**" if ideal else "-", _rounds_cell(r),
                  where(r.get("stages", {}), ideal)]
         lines.append("| " + " | ".join(cells) + " |")
     return "\n".join(lines)

@@ -32,6 +32,10 @@ def test_floor_work_and_row_of_a_small_case(tmp_path):
     rounds = {**row, "floors": [1.5 * floor["floor"], floor["floor"]]}
     spread = f"{1e3 * floor['floor']:.2f} ({0.5e3 * floor['floor']:.2f})"
     assert f"| {spread} |" in bench.table([rounds]).splitlines()[-1]
+    # each round's CPU time over that round's floor
+    by_round = f"| {2.0 / (1.5 * ideal):.0f}-{2.5 / ideal:.0f} |"
+    assert by_round in bench.table([rounds]).splitlines()[-1]
+    assert "| - |" in bench.table([row]).splitlines()[-1]  # one floor for two runs
     # a case without finite-element work has no ratio; a failed one says so
     rigid = {**row, "iterations": 0}
     assert "| - |" in bench.table([rigid]).splitlines()[-1]
