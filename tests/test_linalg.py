@@ -171,3 +171,32 @@ def test_refactorizer_reuses_the_analysis_of_one_pattern(clamped, method):
         d = sp.diags(np.arange(1.0, clamped.shape[0] + 1.0)).tocsr()
         np.testing.assert_allclose(refactorizer.factorize(d).solve(b), b / d.diagonal())
         assert refactorizer.analyses == 2
+
+
+def test_mkl_is_taken_from_the_environment_without_a_subprocess(monkeypatch, tmp_path):
+    """The MKL runtime in ``sys.prefix/lib*`` is named to pypardiso's loader without asking
+    ``find_library`` (which runs ldconfig, gcc and ld as subprocesses); a path the
+    environment names, or a prefix without the library, leaves the search to the loader."""
+    import ctypes
+    import glob
+    import subprocess
+    import sys
+
+    from fem_frac.solve import linalg
+
+    def no_subprocess(*args, **kwargs):
+        raise AssertionError("a subprocess was started")
+
+    monkeypatch.setattr(subprocess, "Popen", no_subprocess)
+    monkeypatch.delenv("PYPARDISO_MKL_RT", raising=False)
+    path = linalg._mkl_rt_in_prefix()
+    if glob.glob(f"{sys.prefix}/[Ll]ib*/*mkl_rt*"):
+        assert path is not None and path.startswith(sys.prefix)
+        ctypes.CDLL(path)
+    monkeypatch.setenv("PYPARDISO_MKL_RT", "/some/libmkl_rt.so")
+    assert linalg._mkl_rt_in_prefix() is None
+    monkeypatch.delenv("PYPARDISO_MKL_RT")
+    (tmp_path / "lib").mkdir()
+    (tmp_path / "lib" / "libmkl_rt.so.2").write_text("not a library")
+    monkeypatch.setattr(sys, "prefix", str(tmp_path))
+    assert linalg._mkl_rt_in_prefix() is None  # none that loads
