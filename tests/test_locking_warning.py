@@ -1,7 +1,8 @@
 """``check`` and ``run`` warn, with numbers, when the elements will be too stiff: standard
 linear tets with plasticity (isochoric flow locks them), with nu >= 0.45, and with fewer
 than 4 linear tets across the thinnest extent of the body; not P2, not the averaged
-formulation under plastic flow or near-incompressibility."""
+formulation under plastic flow or near-incompressibility, which ``check`` notes where P2
+is the better buy."""
 
 from __future__ import annotations
 
@@ -44,6 +45,28 @@ def test_check_warns_on_a_p1_plastic_case_and_not_on_a_p2_one(tmp_path, capsys):
 
 def test_the_averaged_formulation_is_not_warned_of(tmp_path, capsys):
     assert "lock" not in check(tmp_path, capsys, variant(formulation="averaged"))
+
+
+def test_check_notes_where_p2_is_the_better_buy_than_the_averaged_formulation(tmp_path,
+                                                                             capsys):
+    """Averaged linear tets under plastic flow or near incompressibility, static or
+    implicit: a note with Hill's sphere's errors and times (docs/plasticity.md); none for
+    P2, for a compressible elastic case, or for explicit dynamics (not measured)."""
+    note = "note: quadratic tets are the better buy"
+    plastic = line(check(tmp_path, capsys, variant(formulation="averaged")), note)
+    assert "0.15 %" in plastic and "0.71 %" in plastic and "mesh.order: 2" in plastic
+    assert note not in check(tmp_path, capsys, variant(order=2))
+    elastic = variant(formulation="averaged")
+    del elastic["plasticity"]
+    assert note not in check(tmp_path, capsys, elastic)
+    elastic["material"]["poissons_ratio"] = 0.49
+    nearly = line(check(tmp_path, capsys, elastic), note)
+    assert "0.26 %" in nearly and "7.9 %" in nearly
+    explicit = variant(formulation="averaged")
+    explicit["material"]["density"] = 7800.0
+    explicit["analysis"] = {"type": "dynamic", "integrator": "central_difference",
+                            "dt": 1e-7, "steps": 1}
+    assert note not in check(tmp_path, capsys, explicit)
 
 
 def test_nu_near_one_half_warns_with_the_bulk_to_shear_ratio(tmp_path, capsys):

@@ -24,7 +24,7 @@ from ..solve.problem import outer_facets
 from ..timing import StageTimer
 from .driver import check_stages, interface_recipe, recipe_of
 from .initial import check_initial, describe_initial
-from .locking import locking_warnings
+from .locking import element_notes, locking_warnings
 from .plan import format_plan, make_plan
 
 # Tets with a smaller minimum dihedral angle than this are reported as poorly shaped.
@@ -84,10 +84,7 @@ def check_report(case: Case, source: Source) -> str:
     initial = describe_initial(case, space, problem, source.path.parent)
     if initial is not None:
         lines.append(f"initial     {initial}")
-    warnings = locking_warnings(case, mesh, materials, problem)
-    if warnings:
-        lines.append("locking")
-        lines += [f"  warning: {text}" for text in warnings]
+    lines += _element_lines(case, mesh, materials, problem)
     if case.fracture is not None:
         lines += _fracture_lines(case, mesh, materials)
     if isinstance(case.analysis, DynamicAnalysis):
@@ -95,6 +92,17 @@ def check_report(case: Case, source: Source) -> str:
     lines += _obstacle_lines(case, source.path.parent) + ["plan"]
     lines.append(format_plan(make_plan(case)))
     return "\n".join(lines)
+
+
+def _element_lines(case: Case, mesh, materials, problem) -> list[str]:
+    """Warnings of elements that will be too stiff, and notes where another element is the
+    better buy (:mod:`~fem_frac.app.locking`)."""
+    warnings = locking_warnings(case, mesh, materials, problem)
+    notes = element_notes(case, materials)
+    if not warnings and not notes:
+        return []
+    return (["locking" if warnings else "elements"] + [f"  warning: {t}" for t in warnings]
+            + [f"  note: {t}" for t in notes])
 
 
 def _obstacle_lines(case: Case, case_dir: Path) -> list[str]:
