@@ -26,7 +26,10 @@ For each case, in fresh subprocesses:
 least floor, which may come from different rounds), each round's own ratio (its run's CPU
 time over its floor: the machine's speed drifts between rounds minutes apart, by up to 2x,
 and moves a round's floor and runs alike), and, for the stages that take the most wall
-time, their seconds in units of the ideal and their share of the run. A case whose body
+time, their seconds in units of the ideal and their share of the run; and the start-up, the
+CPU seconds a run's process spent before its run began (Python's start, the imports,
+reading the case: summary.json's ``cpu_time_s.before_run``, the least over the runs), part of
+its CPU time, in units of the ideal too. A case whose body
 turns rigid at once (``whole_body: true``) has no finite-element work and no ratio.
 """
 
@@ -137,6 +140,13 @@ def work(out: Path) -> dict:
             "stages": summary.get("wall_time_s", {}), "status": summary.get("status")}
 
 
+def before_run(out: Path) -> float | None:
+    """The CPU seconds the run's process spent before the run began (Python's start, the
+    imports, reading the case: summary.json's ``cpu_time_s``), ``None`` where not given."""
+    summary = json.loads((out / "summary.json").read_text())
+    return summary.get("cpu_time_s", {}).get("before_run")
+
+
 def measure_floor(row: dict, c: str) -> None:
     """One more floor of case ``c`` into ``row`` (its ``floors``; the parts of the least)."""
     cpu, wall, res = child([sys.executable, __file__, "--floor", c])
@@ -169,6 +179,7 @@ def measure(cases: list[str], repeats: int) -> list[dict]:
                     continue
                 rows[c]["cpu"].append(cpu)
                 rows[c]["wall"].append(wall)
+                rows[c].setdefault("before_run", []).append(before_run(out))
                 if k == 0:
                     rows[c].update(work(out))
                 print(f"run {k + 1}/{repeats}  {c}: {cpu:.2f} CPU-s, {wall:.2f} s", flush=True)
@@ -213,10 +224,19 @@ def _rounds_cell(r: dict) -> str:
     return f"{min(ratios):.0f}-{max(ratios):.0f}"
 
 
+def _start_cell(r: dict, ideal: float | None) -> str:
+    """The least CPU time the runs' processes spent before the run (start-up), in seconds
+    and in units of the ideal."""
+    start = [b for b in r.get("before_run", []) if b is not None]
+    if not start:
+        return "-"
+    return f"{min(start):.2f}" + (f" ({min(start) / ideal:.1f}x)" if ideal else "")
+
+
 def table(rows: list[dict]) -> str:
     head = ("| case | tets | dofs | steps | iterations | batches | floor ms min (spread) | ideal s "
-            "| CPU s min (spread) | wall s min | CPU / ideal | by round | where the wall time "
-            "goes: stage s (x ideal, share) |")
+            "| CPU s min (spread) | wall s min | CPU / ideal | by round | of which start-up: "
+            "CPU s (x ideal) | where the wall time goes: stage s (x ideal, share) |")
     lines = [head, "|" + "---|" * (head.count("|") - 1)]
     for r in rows:
         name = Path(r["case"]).stem
@@ -231,7 +251,7 @@ def table(rows: list[dict]) -> str:
                  _floor_cell(r), f"{ideal:.3f}" if ideal else "-",
                  f"{cpu.min():.2f} ({np.ptp(cpu):.2f})", f"{wall.min():.2f}",
                  f"**{cpu.min() / ideal:.0f}**" if ideal else "-", _rounds_cell(r),
-                 where(r.get("stages", {}), ideal)]
+                 _start_cell(r, ideal), where(r.get("stages", {}), ideal)]
         lines.append("| " + " | ".join(cells) + " |")
     return "\n".join(lines)
 

@@ -21,6 +21,8 @@ def test_floor_work_and_row_of_a_small_case(tmp_path):
     out = tmp_path / "run"
     assert main(["run", str(case), "-o", str(out), "-q"]) == 0
     work = bench.work(out)
+    start = bench.before_run(out)  # this test process's CPU before the run
+    assert 0 < start
     assert work["steps"] > 0 and work["iterations"] >= work["steps"]
     assert work["stages"]["total"] > 0 and work["batches"] == 0
     row = {"case": "cases/vibrating_beam.yaml", "cpu": [2.0, 2.5], "wall": [1.5, 1.6],
@@ -36,6 +38,9 @@ def test_floor_work_and_row_of_a_small_case(tmp_path):
     by_round = f"| {2.0 / (1.5 * ideal):.0f}-{2.5 / ideal:.0f} |"
     assert by_round in bench.table([rounds]).splitlines()[-1]
     assert "| - |" in bench.table([row]).splitlines()[-1]  # one floor for two runs
+    # the least start-up over the runs, in seconds and in ideals
+    started = {**row, "before_run": [0.4, 0.3, None]}
+    assert f"| 0.30 ({0.3 / ideal:.1f}x) |" in bench.table([started]).splitlines()[-1]
     # a case without finite-element work has no ratio; a failed one says so
     rigid = {**row, "iterations": 0}
     assert "| - |" in bench.table([rigid]).splitlines()[-1]

@@ -25,6 +25,10 @@ def test_case_runs_and_writes_readable_output(case, tmp_path):
     assert summary["max_displacement"] > 0 and (
         summary["strain_energy"] > 0 or fracture or "whole_body: true" in text)
     assert summary["wall_time_s"]["total"] > 0
+    # the process's CPU before the run (this test process's imports and earlier cases) and
+    # in it
+    cpu = summary["cpu_time_s"]
+    assert cpu["before_run"] > 0 and cpu["run"] > 0
     pvd = out / f"{case.stem}.pvd"
     assert pvd.is_file() and (out / "case.resolved.yaml").is_file()
     view = out / f"{case.stem}_view.py"  # the ParaView script beside the series

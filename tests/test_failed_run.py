@@ -41,6 +41,7 @@ def _failed(summary: dict, step: int, stopped: int, stage: str) -> None:
     assert summary["stopped_at"] == {"step": stopped, "stage": stage}
     assert summary["message"]
     assert summary["wall_time_s"]["total"] > 0
+    assert summary["cpu_time_s"]["before_run"] > 0 and summary["cpu_time_s"]["run"] >= 0
     assert summary["counts"]["elements"] > 0 and summary["counts"]["dofs"] > 0
 
 
@@ -84,6 +85,7 @@ def test_a_failure_while_discretizing_claims_the_directory(tmp_path, capsys, mon
     assert summary["status"] == "failed" and summary["stopped_at"]["stage"] == "set-up"
     assert "numerical failure: FloatingPointError: overflow in the mass matrix" in err
     assert summary["message"] in err and summary["wall_time_s"]["mesh"] > 0
+    assert summary["cpu_time_s"]["run"] >= 0
 
 
 def test_a_failure_in_a_fracture_pass_leaves_a_failed_summary(tmp_path, capsys, monkeypatch):

@@ -257,7 +257,7 @@ def run_case(case: Case, case_path: Path, out_dir: Path, name: str, overwrite: b
     except NUMERICAL as exc:
         _, status = _claim(out_dir, name, overwrite, resolved_yaml, case_path,
                            time_grid(case.analysis).steps)
-        status.fail(exc, {"wall_time_s": _wall(timer)})
+        status.fail(exc, {"wall_time_s": _wall(timer), "cpu_time_s": timer.cpu()})
         raise
     # after validation (a bad case never touches earlier results), before the long stages
     manifest, status = _claim(out_dir, name, overwrite, resolved_yaml, case_path,
@@ -355,6 +355,7 @@ def _known(setup: Setup, case_path: Path, status: RunStatus, timer: StageTimer) 
         except Exception:  # noqa: BLE001 (the failure is reported, whatever this one is)
             pass
     known["wall_time_s"] = _wall(timer)
+    known["cpu_time_s"] = timer.cpu()
     return known
 
 
@@ -395,6 +396,7 @@ def _summary(case: Case, case_path: Path, setup: Setup, world: World, tally: Tal
              timer: StageTimer, log: Log, record) -> dict:
     result = {"status": "completed", **summary(case, case_path, setup.grid, world, tally)}
     result["wall_time_s"] = _wall(timer)
+    result["cpu_time_s"] = timer.cpu()
     if case.reference is not None:
         body = world.body or tally.body
         ref = reference_error(case, setup.grid, body.disc, body.state, record)
