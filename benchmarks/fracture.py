@@ -32,6 +32,11 @@ One subprocess per size.
 
     python benchmarks/fracture.py                       # 10k and 100k tets, best of 3
     python benchmarks/fracture.py --sizes 10000 --repeats 5
+    python benchmarks/fracture.py --sizes 100000 --profile 40   # and where the second goes
+
+``--profile N``: after the table, for each size, the ``N`` functions of largest cumulative
+time of one more warm call of the second batch under ``cProfile`` (which slows Python-level
+code, so read its shares, not its seconds).
 
 The measured table and its reading are in docs/performance.md ("One crack-insertion batch
 against a plain step"); ``tests/test_benchmark_fracture.py`` runs this script on a small bar
@@ -99,7 +104,7 @@ def best(fn, repeats: int):
     return min(times), out
 
 
-def one(n_tets: int, repeats: int) -> dict:
+def one(n_tets: int, repeats: int, profile: int = 0) -> dict:
     from dataclasses import replace
 
     from fem_frac.app.driver import prepare, start, times
@@ -267,9 +272,24 @@ def one(n_tets: int, repeats: int) -> dict:
 
     r["second batch warm"], (_, event) = best(second, repeats)
     assert len(event.batches) == 1, "the second batch opened nothing"
+    if profile:
+        r["profile"] = _profiled(second, profile)
     r["pieces"] = p
     r["peak_mib"] = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
     return r
+
+
+def _profiled(fn, top: int) -> str:
+    """The ``top`` functions of largest cumulative time of one call of ``fn``."""
+    import cProfile
+    import io
+    import pstats
+
+    profiler = cProfile.Profile()
+    profiler.runcall(fn)
+    text = io.StringIO()
+    pstats.Stats(profiler, stream=text).sort_stats("cumulative").print_stats(top)
+    return text.getvalue()
 
 
 def _t(x: float) -> str:
@@ -310,14 +330,17 @@ def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--sizes", type=int, nargs="+", default=[10_000, 100_000])
     p.add_argument("--repeats", type=int, default=3, help="best of, for every piece")
+    p.add_argument("--profile", type=int, default=0, metavar="N",
+                   help="print the N costliest functions of one more second batch")
     p.add_argument("--one", type=int, help=argparse.SUPPRESS)
     args = p.parse_args()
     if args.one:
-        print(json.dumps(one(args.one, args.repeats)))
+        print(json.dumps(one(args.one, args.repeats, args.profile)))
         return
     rows = []
     for n in args.sizes:
-        cmd = [sys.executable, __file__, "--one", str(n), "--repeats", str(args.repeats)]
+        cmd = [sys.executable, __file__, "--one", str(n), "--repeats", str(args.repeats),
+               "--profile", str(args.profile)]
         done = subprocess.run(cmd, capture_output=True, text=True)
         if done.returncode != 0:
             print(f"{n} tets: failed\n{done.stderr[-3000:]}", file=sys.stderr)
@@ -325,6 +348,9 @@ def main() -> None:
         rows.append(json.loads(done.stdout.strip().splitlines()[-1]))
     if rows:
         print(table(rows))
+    for r in rows:
+        if r.get("profile"):
+            print(f"\nThe second batch at {r['tets']:,} tets under cProfile:\n{r['profile']}")
 
 
 if __name__ == "__main__":

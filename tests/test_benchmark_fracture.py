@@ -9,8 +9,8 @@ SCRIPT = Path(__file__).parent.parent / "benchmarks" / "fracture.py"
 
 
 def test_the_insertion_batch_benchmark_runs():
-    out = subprocess.run([sys.executable, str(SCRIPT), "--sizes", "2000", "--repeats", "1"],
-                         capture_output=True, text=True, timeout=300)
+    out = subprocess.run([sys.executable, str(SCRIPT), "--sizes", "2000", "--repeats", "1",
+                          "--profile", "20"], capture_output=True, text=True, timeout=300)
     assert out.returncode == 0, out.stderr[-2000:]
     table = out.stdout
     assert "failed" not in table
@@ -18,6 +18,8 @@ def test_the_insertion_batch_benchmark_runs():
                 "**refactorization**", "**support check**", "**batch warm**",
                 "**second batch warm**"):
         assert row in table
+    # the second batch under cProfile, after the table
+    assert "under cProfile" in table and "stage.py" in table.split("under cProfile")[1]
 
 
 def test_the_pardiso_halves_benchmark_runs():
