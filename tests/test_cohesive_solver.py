@@ -179,6 +179,31 @@ def test_closed_faces_do_not_pass_through_each_other():
     assert np.abs(jump).max() <= abs(traction) * 0.5 / (1.0 * E)
 
 
+def test_the_secant_matrices_of_the_steps_share_one_analysis():
+    """The faces' secant stiffness changes as they soften, not its pattern: a step whose
+    secant changed refactorizes numerically (PARDISO's analysis made again only where the
+    pattern changed: once here, where the faces have separated and their couplings vanish
+    from the sum), the steps the same as fresh factorizations give (tests/test_linalg.py:
+    the same bits)."""
+    from fem_frac.solve.linalg import available_methods
+
+    if "pardiso" not in available_methods():
+        pytest.skip("PARDISO is not installed here")
+    c = case(PATH)
+    c["fracture"]["cohesive"]["law"] = "linear"
+    setup = prepare(Case.model_validate(c), Path("."), StageTimer())
+    disc = rediscretize(setup.disc, cracked_bar(), StageTimer(), "cut")
+    stepper = disc.stepper
+    state = initial_state(disc.problem, disc.law, disc.ops, None, disc.constrained)
+    ledger = initial_ledger(state, disc.law, disc.ops)
+    made = 0
+    for k in range(1, len(PATH)):
+        state, ledger, info = advance(stepper, state, k / (len(PATH) - 1), ledger, k)
+        made += info.factorizations
+    # 9 secant factorizations (the secant changed from step to step), 2 analyses
+    assert stepper.secants.analyses == 2 and made > 2 * stepper.secants.analyses
+
+
 def test_dynamic_cohesive_run_balances_its_ledger():
     """Newmark average acceleration through softening and separation: the energy balance
     with the cohesive work is exact at converged equilibrium."""

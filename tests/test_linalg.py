@@ -173,6 +173,24 @@ def test_refactorizer_reuses_the_analysis_of_one_pattern(clamped, method):
         assert refactorizer.analyses == 2
 
 
+def test_a_numerical_refactorization_is_the_fresh_factorization_to_the_bit(clamped):
+    """PARDISO's ordering and symbolic analysis depend on the pattern alone, so a matrix
+    factorized numerically after another of its pattern (phase 22) solves to the same bits
+    as its own fresh factorization (phase 12): on this ground a cohesive step's secant
+    matrix goes through a Refactorizer (fem_frac.solve.stepping), not afresh."""
+    from fem_frac.solve.linalg import Refactorizer
+
+    if "pardiso" not in METHODS:
+        pytest.skip("PARDISO is not installed here")
+    refactorizer = Refactorizer("pardiso")
+    b = np.random.default_rng(4).standard_normal((clamped.shape[0], 2))
+    refactorizer.factorize(clamped + sp.diags(np.full(clamped.shape[0], 1e3)))
+    a = 2.0 * clamped + sp.diags(np.linspace(1e2, 1e4, clamped.shape[0]))
+    x = refactorizer.factorize(a).solve(b)
+    assert refactorizer.analyses == 1
+    assert np.array_equal(x, factorize(a, "pardiso").solve(b))
+
+
 def test_mkl_is_taken_from_the_environment_without_a_subprocess(monkeypatch, tmp_path):
     """The MKL runtime in ``sys.prefix/lib*`` is named to pypardiso's loader without asking
     ``find_library`` (which runs ldconfig, gcc and ld as subprocesses); a path the

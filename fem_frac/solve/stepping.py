@@ -120,6 +120,9 @@ class ImplicitStepper:
         self.factor = None  # elastic Jacobian's factorization, made on first use
         self.seed = None  # after an insertion: (old factorization, tie) (solve.bordered)
         self.tangents = None  # full Newton's refactorizer, made on first use
+        # the cohesive secant's: one pattern step after step (the faces' matrix keeps its
+        # entries as they soften), so each step's secant costs a numerical factorization
+        self.secants = None
         self.secant = None  # the cohesive secant stiffness ``self.factor`` holds
         # the step whose (sub-)steps iterate with full Newton since modified Newton
         # switched to it (the limit-load rule)
@@ -162,8 +165,11 @@ class ImplicitStepper:
                                                    atol=0.0):
             return self.factor, False
         self.secant = secant
+        if self.secants is None:
+            self.secants = Refactorizer(self.constrained.method)
+        # (the factorization this replaces is no longer used: it was the last secant's)
         self.factor = self.constrained.factorize(
-            self.jacobian(self.ops.stiffness + interface.matrix(secant)))
+            self.jacobian(self.ops.stiffness + interface.matrix(secant)), self.secants)
         return self.factor, True
 
     def step(self, old: State, t: float, step: int) -> tuple[State, StepInfo]:
