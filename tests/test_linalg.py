@@ -156,7 +156,7 @@ def test_wrong_rhs_shape(clamped):
 def test_refactorizer_reuses_the_analysis_of_one_pattern(clamped, method):
     """Matrices with the pattern of the first are factorized numerically only (PARDISO: one
     analysis), and every factorization solves its own matrix to round-off."""
-    from fem_frac.solve.linalg import Refactorizer
+    from fem_frac.solve.refactorizer import Refactorizer
 
     refactorizer = Refactorizer(method)
     rng = np.random.default_rng(3)
@@ -178,7 +178,7 @@ def test_a_numerical_refactorization_is_the_fresh_factorization_to_the_bit(clamp
     factorized numerically after another of its pattern (phase 22) solves to the same bits
     as its own fresh factorization (phase 12): on this ground a cohesive step's secant
     matrix goes through a Refactorizer (fem_frac.solve.stepping), not afresh."""
-    from fem_frac.solve.linalg import Refactorizer
+    from fem_frac.solve.refactorizer import Refactorizer
 
     if "pardiso" not in METHODS:
         pytest.skip("PARDISO is not installed here")
@@ -189,6 +189,41 @@ def test_a_numerical_refactorization_is_the_fresh_factorization_to_the_bit(clamp
     x = refactorizer.factorize(a).solve(b)
     assert refactorizer.analyses == 1
     assert np.array_equal(x, factorize(a, "pardiso").solve(b))
+
+
+def test_a_kept_pattern_is_restricted_by_gathering_its_entries(system, monkeypatch):
+    """Refactorizer.factorize_free: a matrix with the pattern (and free dofs) of the
+    previous call goes to PARDISO without slicing or ``triu`` (its entries gathered at
+    positions kept from that call), and solves to the same bits as the restricted matrix
+    factorized afresh; another pattern is sliced and analysed again."""
+    import scipy.sparse
+
+    from fem_frac.solve.refactorizer import Refactorizer
+
+    if "pardiso" not in METHODS:
+        pytest.skip("PARDISO is not installed here")
+    k, clamped_dofs = system
+    n = k.shape[0]
+    free = np.setdiff1d(np.arange(n), clamped_dofs)
+    b = np.random.default_rng(5).standard_normal(free.size)
+    refactorizer = Refactorizer("pardiso")
+    refactorizer.factorize_free((k + sp.identity(n)).tocsr(), free)
+    matrix = (1.5 * k + sp.diags(np.linspace(1.0, 2.0, n))).tocsr()
+
+    def no_triu(*args, **kwargs):
+        raise AssertionError("the kept pattern was sliced again")
+
+    with monkeypatch.context() as m:
+        m.setattr(scipy.sparse, "triu", no_triu)
+        x = refactorizer.factorize_free(matrix, free).solve(b)
+    assert refactorizer.analyses == 1
+    assert np.array_equal(x, factorize(matrix[free][:, free].tocsr(), "pardiso").solve(b))
+    # one more coupling: another pattern, analysed again, still right
+    extra = sp.csr_matrix(([1.0, 1.0], ([free[0], free[-1]], [free[-1], free[0]])), shape=(n, n))
+    other = (matrix + extra).tocsr()
+    x = refactorizer.factorize_free(other, free).solve(b)
+    assert refactorizer.analyses == 2
+    assert np.array_equal(x, factorize(other[free][:, free].tocsr(), "pardiso").solve(b))
 
 
 def test_mkl_is_taken_from_the_environment_without_a_subprocess(monkeypatch, tmp_path):

@@ -5,7 +5,8 @@ from __future__ import annotations
 import numpy as np
 import scipy.sparse as sp
 
-from .linalg import Refactorizer, factorize
+from .linalg import factorize
+from .refactorizer import Refactorizer
 
 
 class Constrained:
@@ -34,7 +35,6 @@ class Constrained:
 
             return PetscFactorization(matrix, self.free, self.points,
                                       Settings.of(self.petsc), active())
-        sub = matrix[self.free][:, self.free].tocsr()
         if refactorizer is not None:
-            return refactorizer.factorize(sub)
-        return factorize(sub, self.method)
+            return refactorizer.factorize_free(matrix, self.free)
+        return factorize(matrix[self.free][:, self.free].tocsr(), self.method)

@@ -17,6 +17,14 @@ ANDERSON_DEPTH = 5
 RATE_WINDOW = 10
 
 
+def norm(x) -> float:
+    """Euclidean norm of a residual or correction without BLAS: ``np.linalg.norm`` goes
+    through a threaded BLAS dot that costs milliseconds under contention for a vector that
+    einsum sums in microseconds."""
+    x = np.asarray(x, dtype=float)
+    return float(np.sqrt(np.einsum("i,i->", x, x))) if x.ndim else abs(float(x))
+
+
 class Anderson:
     """Anderson acceleration of the fixed-point iteration u <- u + J0^-1 R(u) of modified
     Newton (Walker & Ni, SIAM J. Numer. Anal. 49, 2011): the next iterate combines the last

@@ -20,10 +20,10 @@ import scipy.sparse as sp
 from ..config.schema import Equilibrium
 from ..errors import SolverError
 from . import convergence
-from .convergence import ANDERSON_DEPTH, Anderson, contraction, iterations_left
+from .convergence import ANDERSON_DEPTH, Anderson, contraction, iterations_left, norm
 from .energy import Ledger, account
 from .integrators import Implicit
-from .linalg import Refactorizer
+from .refactorizer import Refactorizer
 from .state import Operators, State, StepInfo, check_finite, cohesive_force, reaction
 
 # A correction below this fraction of the displacement is round-off (a few hundred ulps).
@@ -32,6 +32,8 @@ ROUND_OFF = 1e-13
 LINE_SEARCH_HALVINGS = 4
 # Iterations on one secant factorization before the secant of the latest iterate replaces it.
 SECANT_REFRESH = 25
+
+
 class NotConverged(SolverError):
     """Equilibrium iteration of one step stopped at its iteration cap (or was predicted
     to). ``converged`` is ``(state, ledger)`` of the last sub-step a cut-back step
@@ -40,13 +42,6 @@ class NotConverged(SolverError):
 
     converged: tuple | None = None
     substeps: tuple = ()
-
-
-def _norm(x) -> float:
-    """Euclidean norm without BLAS: ``np.linalg.norm`` goes through a threaded BLAS dot
-    that costs milliseconds under contention for a vector that einsum sums in microseconds."""
-    x = np.asarray(x, dtype=float)
-    return float(np.sqrt(np.einsum("i,i->", x, x))) if x.ndim else abs(float(x))
 
 
 @dataclass
@@ -119,10 +114,9 @@ class ImplicitStepper:
         self.fixed_columns = ops.stiffness.tocsr()[:, constrained.dofs].tocsr()
         self.factor = None  # elastic Jacobian's factorization, made on first use
         self.seed = None  # after an insertion: (old factorization, tie) (solve.bordered)
-        self.tangents = None  # full Newton's refactorizer, made on first use
-        # the cohesive secant's: one pattern step after step (the faces' matrix keeps its
-        # entries as they soften), so each step's secant costs a numerical factorization
-        self.secants = None
+        # full Newton's tangents' and the cohesive secants' refactorizers (made on first
+        # use): a secant's pattern stays from step to step as the faces soften
+        self.tangents = self.secants = None
         self.secant = None  # the cohesive secant stiffness ``self.factor`` holds
         # the step whose (sub-)steps iterate with full Newton since modified Newton
         # switched to it (the limit-load rule)
@@ -165,10 +159,8 @@ class ImplicitStepper:
                                                    atol=0.0):
             return self.factor, False
         self.secant = secant
-        if self.secants is None:
-            self.secants = Refactorizer(self.constrained.method)
-        # (the factorization this replaces is no longer used: it was the last secant's)
-        self.factor = self.constrained.factorize(
+        self.secants = self.secants or Refactorizer(self.constrained.method)
+        self.factor = self.constrained.factorize(  # (replaces the last secant's)
             self.jacobian(self.ops.stiffness + interface.matrix(secant)), self.secants)
         return self.factor, True
 
@@ -224,11 +216,11 @@ class ImplicitStepper:
         on with the faces' secant stiffness (:meth:`step`)."""
         free = self.constrained.free
         base, correction = it.u[free].copy(), it.correction
-        before = _norm(self._residual(it, old, target)[0][free]) if it.iterations else np.inf
+        before = norm(self._residual(it, old, target)[0][free]) if it.iterations else np.inf
         for k in range(LINE_SEARCH_HALVINGS + 1):
             it.u[free] = base + 0.5**k * correction
             self._update(it, old)
-            if _norm(self._residual(it, old, target)[0][free]) < before:
+            if norm(self._residual(it, old, target)[0][free]) < before:
                 break
         else:
             it.secant = True
@@ -245,7 +237,7 @@ class ImplicitStepper:
             f_ext = f_ext - alpha * self.problem.external_force(old.t)
         history = alpha * (damp_old + old.internal_force) if alpha else 0.0
         u_pred, v_pred = s.predict(old.u, old.v, old.a) if self.inertia else (old.u, old.v)
-        return _Target(load, f_ext, history, u_pred, v_pred, _norm(f_ext))
+        return _Target(load, f_ext, history, u_pred, v_pred, norm(f_ext))
 
     def _first_iterate(self, old: State, t: float) -> _Iterate:
         """Linearize the internal force about the committed state with the elastic
@@ -278,7 +270,7 @@ class ImplicitStepper:
             else 0.0
         residual = target.f_ext - inertial - (1.0 + alpha) * (damping + it.f_int) \
             + target.history
-        scale = max(target.norm, (1.0 + alpha) * _norm(it.f_int), _norm(inertial), 1e-300)
+        scale = max(target.norm, (1.0 + alpha) * norm(it.f_int), norm(inertial), 1e-300)
         return residual, scale
 
     def _converged(self, it: _Iterate, residual: np.ndarray, scale: float, t: float,
@@ -287,19 +279,19 @@ class ImplicitStepper:
         on); raises when it cannot go on."""
         free, fixed = self.constrained.free, self.constrained.dofs
         method = self.equilibrium.method
-        it.relative = _norm(residual[free]) / scale
+        it.relative = norm(residual[free]) / scale
         if not np.isfinite(it.relative):
             _diagnose(step, it.u, it.stress, residual)
         if it.relative <= self.equilibrium.tolerance or method == "single_pass":
             return True
-        if _norm(it.correction) <= ROUND_OFF * _norm(it.u[free]):
+        if norm(it.correction) <= ROUND_OFF * norm(it.u[free]):
             # the last correction moved nothing beyond round-off, so no iteration can
             # reduce the residual: it is round-off too, left relative to forces that are
             # themselves round-off (a body cut free under prescribed displacements carries
             # nothing: f_ext = f_int = 0); reported against the force of the prescribed
             # motion on the free dofs
-            prescribed = _norm((self.fixed_columns @ it.u[fixed])[free])
-            it.relative = _norm(residual[free]) / max(scale, prescribed)
+            prescribed = norm((self.fixed_columns @ it.u[fixed])[free])
+            it.relative = norm(residual[free]) / max(scale, prescribed)
             return True
         if it.iterations >= self.equilibrium.max_iterations:
             raise NotConverged(self._not_reached(it, t, step, f"in {it.iterations} "
@@ -352,8 +344,7 @@ class ImplicitStepper:
     def _refactorize(self, it: _Iterate, t: float, step: int) -> None:
         """Full Newton: factorize the consistent tangent of the iterate (bulk and cohesive
         faces)."""
-        if self.tangents is None:
-            self.tangents = Refactorizer(self.constrained.method)
+        self.tangents = self.tangents or Refactorizer(self.constrained.method)
         # an elastic bulk's tangent is the stiffness assembled once
         stiffness = self.ops.stiffness if it.tangent is None or not self.law.plastic else \
             self.ops.strain_operator.stiffness(it.tangent)
