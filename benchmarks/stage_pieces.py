@@ -5,7 +5,8 @@
 
 Runs ``fem-frac run CASE -q`` in this process (into a temporary folder) with each piece,
 ``module:function``, wrapped by a timer where the module that calls it looks it up (so
-name the module that *imports* the function, as the defaults do). Pieces nest: a piece's
+name the module that *imports* the function, as the defaults do), or ``module:Class.method``,
+wrapped on the class. Pieces nest: a piece's
 time includes the pieces it calls. The defaults are the parts of a crack-insertion batch
 (``fracture/stage.py``) and of the re-solve after it. OpenBLAS runs on one thread, as the
 ``fem-frac`` command runs it.
@@ -41,9 +42,14 @@ PIECES = [
 
 
 def wrap(piece: str, totals: dict) -> None:
+    """Time ``piece``, ``module:function`` or ``module:Class.method`` (wrapped on the class,
+    so every instance's calls count)."""
     module_name, name = piece.split(":")
-    module = importlib.import_module(module_name)
-    inner = getattr(module, name)
+    owner = importlib.import_module(module_name)
+    *path, name = name.split(".")
+    for part in path:
+        owner = getattr(owner, part)
+    inner = getattr(owner, name)
 
     def timed(*args, **kwargs):
         t0 = time.perf_counter()
@@ -53,7 +59,7 @@ def wrap(piece: str, totals: dict) -> None:
             totals[piece][0] += 1
             totals[piece][1] += time.perf_counter() - t0
 
-    setattr(module, name, timed)
+    setattr(owner, name, timed)
 
 
 def main() -> None:
