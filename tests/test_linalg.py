@@ -192,9 +192,9 @@ def test_a_numerical_refactorization_is_the_fresh_factorization_to_the_bit(clamp
 
 
 def test_a_kept_pattern_is_restricted_by_gathering_its_entries(system, monkeypatch):
-    """Refactorizer.factorize_free: a matrix with the pattern (and free dofs) of the
-    previous call goes to PARDISO without slicing or ``triu`` (its entries gathered at
-    positions kept from that call), and solves to the same bits as the restricted matrix
+    """Refactorizer.factorize_free: a matrix with the pattern (and free dofs) of the two
+    calls before goes to PARDISO without slicing or ``triu`` (its entries gathered at
+    positions kept from them), and solves to the same bits as the restricted matrix
     factorized afresh; another pattern is sliced and analysed again."""
     import scipy.sparse
 
@@ -207,7 +207,8 @@ def test_a_kept_pattern_is_restricted_by_gathering_its_entries(system, monkeypat
     free = np.setdiff1d(np.arange(n), clamped_dofs)
     b = np.random.default_rng(5).standard_normal(free.size)
     refactorizer = Refactorizer("pardiso")
-    refactorizer.factorize_free((k + sp.identity(n)).tocsr(), free)
+    for scale in (1.0, 3.0):  # the pattern seen, then seen again: its positions kept
+        refactorizer.factorize_free((scale * k + sp.identity(n)).tocsr(), free)
     matrix = (1.5 * k + sp.diags(np.linspace(1.0, 2.0, n))).tocsr()
 
     def no_triu(*args, **kwargs):
