@@ -225,6 +225,13 @@ def test_a_kept_pattern_is_restricted_by_gathering_its_entries(system, monkeypat
     x = refactorizer.factorize_free(other, free).solve(b)
     assert refactorizer.analyses == 2
     assert np.array_equal(x, factorize(other[free][:, free].tocsr(), "pardiso").solve(b))
+    # positions kept for a pattern, then another analysed through factorize: they are
+    # dropped, and the first pattern is restricted by slicing again
+    refactorizer.factorize_free(matrix, free)
+    refactorizer.factorize_free(matrix, free)  # its positions kept again
+    refactorizer.factorize(other[free][:, free].tocsr())  # another pattern analysed
+    x = refactorizer.factorize_free(matrix, free).solve(b)
+    assert np.array_equal(x, factorize(matrix[free][:, free].tocsr(), "pardiso").solve(b))
 
 
 def test_mkl_is_taken_from_the_environment_without_a_subprocess(monkeypatch, tmp_path):

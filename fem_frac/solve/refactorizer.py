@@ -23,10 +23,12 @@ from .linalg import (
 
 
 class Refactorizer:
-    """Factorizations of a sequence of matrices with one sparsity pattern (the tangents of
-    full Newton): PARDISO's ordering and symbolic analysis (phase 11) run once, each matrix
-    then costs only the numerical factorization (phase 22). A matrix with another pattern
-    is analysed afresh; other backends factorize every matrix from scratch.
+    """Factorizations of a sequence of matrices with one sparsity pattern (full Newton's
+    tangents, the cohesive faces' secant matrices): PARDISO's ordering and symbolic
+    analysis (phase 11) run once, each matrix then costs only the numerical factorization
+    (phase 22). A matrix with another pattern is analysed afresh; other backends factorize
+    every matrix from scratch. :meth:`factorize_free` takes the whole matrix and its free
+    dofs, and restricts a pattern that comes back without slicing.
 
     Each :meth:`factorize` replaces the previous factorization made here: a
     :class:`Factorization` it returned earlier must not be used after the next call.
@@ -53,6 +55,7 @@ class Refactorizer:
                 and np.array_equal(h.indices, upper.indices)):
             return self._numeric(a, upper.data, start)
         h = self._handle = _PardisoHandle(a)
+        self._gather = None  # its positions were for the pattern analysed before
         dummy = np.zeros(a.shape[0])
         _pardiso_check(h.call(12, dummy, dummy), "factorization")
         self.analyses += 1
