@@ -181,10 +181,9 @@ def test_closed_faces_do_not_pass_through_each_other():
 
 def test_the_secant_matrices_of_the_steps_share_one_analysis():
     """The faces' secant stiffness changes as they soften, not its pattern: a step whose
-    secant changed refactorizes numerically (PARDISO's analysis made again only where the
-    pattern changed: once here, where the faces have separated and their couplings vanish
-    from the sum), the steps the same as fresh factorizations give (tests/test_linalg.py:
-    the same bits)."""
+    secant changed refactorizes numerically on PARDISO's one analysis, also once the faces
+    have separated and their couplings vanish from the sum (part of the pattern analysed:
+    tests/test_linalg.py)."""
     from fem_frac.solve.linalg import available_methods
 
     if "pardiso" not in available_methods():
@@ -200,8 +199,8 @@ def test_the_secant_matrices_of_the_steps_share_one_analysis():
     for k in range(1, len(PATH)):
         state, ledger, info = advance(stepper, state, k / (len(PATH) - 1), ledger, k)
         made += info.factorizations
-    # 9 secant factorizations (the secant changed from step to step), 2 analyses
-    assert stepper.secants.analyses == 2 and made > 2 * stepper.secants.analyses
+    # 9 secant factorizations (the secant changed from step to step), one analysis
+    assert made >= 8 and stepper.secants.analyses == 1
 
 
 def test_dynamic_cohesive_run_balances_its_ledger():

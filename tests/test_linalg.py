@@ -154,8 +154,10 @@ def test_wrong_rhs_shape(clamped):
 
 @pytest.mark.parametrize("method", METHODS)
 def test_refactorizer_reuses_the_analysis_of_one_pattern(clamped, method):
-    """Matrices with the pattern of the first are factorized numerically only (PARDISO: one
-    analysis), and every factorization solves its own matrix to round-off."""
+    """Matrices with the pattern of the first, or with part of it (entries that came out
+    zero), are factorized numerically only (PARDISO: one analysis); one with an entry
+    outside it is analysed afresh; every factorization solves its own matrix to
+    round-off."""
     from fem_frac.solve.refactorizer import Refactorizer
 
     refactorizer = Refactorizer(method)
@@ -167,9 +169,16 @@ def test_refactorizer_reuses_the_analysis_of_one_pattern(clamped, method):
         assert np.linalg.norm(a @ x - b) <= 1e-10 * np.linalg.norm(b)
     if method == "pardiso":
         assert refactorizer.analyses == 1
-        # another pattern (a diagonal) is analysed afresh and still solved right
+        # part of the pattern (a diagonal): on the same analysis, its other entries zero
         d = sp.diags(np.arange(1.0, clamped.shape[0] + 1.0)).tocsr()
         np.testing.assert_allclose(refactorizer.factorize(d).solve(b), b / d.diagonal())
+        assert refactorizer.analyses == 1
+        # an entry outside the pattern (the two ends of the bar coupled): analysed afresh
+        n = clamped.shape[0]
+        a = (clamped + sp.diags(np.full(n, 1e3))
+             + sp.csr_matrix(([1.0, 1.0], ([0, n - 1], [n - 1, 0])), shape=(n, n))).tocsr()
+        x = refactorizer.factorize(a).solve(b)
+        assert np.linalg.norm(a @ x - b) <= 1e-10 * np.linalg.norm(b)
         assert refactorizer.analyses == 2
 
 
@@ -195,7 +204,8 @@ def test_a_kept_pattern_is_restricted_by_gathering_its_entries(system, monkeypat
     """Refactorizer.factorize_free: a matrix with the pattern (and free dofs) of the two
     calls before goes to PARDISO without slicing or ``triu`` (its entries gathered at
     positions kept from them), and solves to the same bits as the restricted matrix
-    factorized afresh; another pattern is sliced and analysed again."""
+    factorized afresh; a pattern with more entries is sliced and analysed again, one with
+    fewer factorized on that analysis."""
     import scipy.sparse
 
     from fem_frac.solve.refactorizer import Refactorizer
@@ -225,13 +235,28 @@ def test_a_kept_pattern_is_restricted_by_gathering_its_entries(system, monkeypat
     x = refactorizer.factorize_free(other, free).solve(b)
     assert refactorizer.analyses == 2
     assert np.array_equal(x, factorize(other[free][:, free].tocsr(), "pardiso").solve(b))
-    # positions kept for a pattern, then another analysed through factorize: they are
-    # dropped, and the first pattern is restricted by slicing again
-    refactorizer.factorize_free(matrix, free)
-    refactorizer.factorize_free(matrix, free)  # its positions kept again
-    refactorizer.factorize(other[free][:, free].tocsr())  # another pattern analysed
+    # the first pattern again: part of the one analysed now, so factorized on that
+    # analysis with the coupling's entries zero (the same matrix, another elimination
+    # order: the same solution to round-off, here a few 1e-14); from the third call on,
+    # gathered and placed in that pattern
+    sub = matrix[free][:, free].tocsr()
+    fresh = factorize(sub, "pardiso").solve(b)
+    for call in range(3):
+        with monkeypatch.context() as m:
+            if call == 2:
+                m.setattr(scipy.sparse, "triu", no_triu)
+            x = refactorizer.factorize_free(matrix, free).solve(b)
+        assert np.linalg.norm(x - fresh) <= 1e-10 * np.linalg.norm(fresh)
+    assert refactorizer.analyses == 2
+    # another pattern analysed through factorize (a coupling neither has): the positions
+    # kept are dropped, and the first pattern is sliced and analysed again
+    size = free.size
+    far = sp.csr_matrix(([1.0, 1.0], ([1, size - 2], [size - 2, 1])), shape=(size, size))
+    refactorizer.factorize((far + 2.0 * sp.identity(size)).tocsr())
+    assert refactorizer.analyses == 3
     x = refactorizer.factorize_free(matrix, free).solve(b)
-    assert np.array_equal(x, factorize(matrix[free][:, free].tocsr(), "pardiso").solve(b))
+    assert refactorizer.analyses == 4
+    assert np.array_equal(x, factorize(sub, "pardiso").solve(b))
 
 
 def test_mkl_is_taken_from_the_environment_without_a_subprocess(monkeypatch, tmp_path):
