@@ -167,6 +167,24 @@ def largest_values(m: np.ndarray) -> np.ndarray:
     return value
 
 
+# The slack of largest_value_bound, of a tensor's size: round-off of the bound and of an
+# eigen-decomposition is a few ulps of it.
+BOUND_SLACK = 1e-12
+
+
+def largest_value_bound(m: np.ndarray) -> np.ndarray:
+    """An upper bound ``(...)`` of the largest eigenvalue of Mandel tensors ``(6, ...)``, for
+    a few passes over them: ``p + sqrt(2/3) |dev|`` (``p`` the mean of the diagonal,
+    ``|dev|`` the Frobenius norm of the deviator, whose largest eigenvalue is at most
+    ``sqrt(2/3)`` of it; equal for a uniaxial tensor), raised by :data:`BOUND_SLACK` of the
+    tensor's size ``|p| + |m|`` so that no computed eigenvalue exceeds it."""
+    m = np.asarray(m, dtype=float)
+    p = np.sum(m[:3], axis=0) / 3.0
+    deviator = np.sum((m[:3] - p) ** 2, axis=0) + np.sum(m[3:] ** 2, axis=0)
+    size = np.abs(p) + np.sqrt(np.sum(m * m, axis=0))
+    return p + np.sqrt(2.0 / 3.0 * deviator) + BOUND_SLACK * size
+
+
 def _largest_value(t: np.ndarray) -> np.ndarray:
     """The trigonometric solution of :func:`largest_principal` on tensor components ``t``
     (xx, yy, zz, xy, yz, xz)."""

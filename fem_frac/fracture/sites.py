@@ -233,7 +233,7 @@ def _allowed(points: np.ndarray, centroids: np.ndarray, lookups: Star, corners: 
     return cut
 
 
-def _no_sites() -> Sites:
+def no_sites() -> Sites:
     return Sites(np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros((0, 3)), np.zeros(0))
 
 
@@ -256,7 +256,7 @@ def select_sites(points: np.ndarray, tets: np.ndarray, sigma1: np.ndarray,
     tets = np.asarray(tets, dtype=np.int64)
     candidates = np.flatnonzero(sigma1 > strength)
     if candidates.size == 0 or limit <= 0:
-        return _no_sites()
+        return no_sites()
     lookups = lookups if lookups is not None else star(tets, points.shape[0])
     if front is not None and near is None:
         near = near_marked(tets, neighbourhood, on_crack)
@@ -294,6 +294,6 @@ def select_sites(points: np.ndarray, tets: np.ndarray, sigma1: np.ndarray,
         if len(chosen) == limit:
             break
     if not chosen:
-        return _no_sites()
+        return no_sites()
     elements, vertices = (np.array(c, dtype=np.int64) for c in zip(*chosen, strict=True))
     return Sites(elements, vertices, direction[elements].copy(), sigma1[elements].copy())
