@@ -104,3 +104,28 @@ def test_study_crack_area_below_1_3_ligament_areas_at_every_size(study_runs):
     """No diffuse band at any size (measured 1.14, 0.75, 0.78 ligament areas; at l_cz / 2
     before cohesive cracks started at their element's most stressed vertex: 5.8)."""
     assert all(r["crack_area"] < 1.3 for r in study_runs)
+
+
+def test_states_no_tet_can_crack_skip_the_eigen_decomposition(tmp_path, monkeypatch):
+    """A cohesive crack's stage decomposes every tet's smoothed stress to choose sites, but
+    only on the states where an upper bound of some tet's largest principal stress reaches
+    the strength: in this run on some of the states it looks for sites on, not all (every
+    one before the first crack is under the strength)."""
+    import fem_frac.fracture.stage as stage
+    from fem_frac.app.cli import main
+
+    calls = {"decomposed": 0, "looked": 0}
+    decompose, look = stage.principal_stress, stage.FractureStage.sites
+
+    def principal_stress(*args, **kwargs):
+        calls["decomposed"] += 1
+        return decompose(*args, **kwargs)
+
+    def sites(self, *args, **kwargs):
+        calls["looked"] += 1
+        return look(self, *args, **kwargs)
+
+    monkeypatch.setattr(stage, "principal_stress", principal_stress)
+    monkeypatch.setattr(stage.FractureStage, "sites", sites)
+    assert main(["run", str(CASE), "-o", str(tmp_path / "beam"), "-q"]) == 0
+    assert 0 < calls["decomposed"] < calls["looked"]

@@ -322,6 +322,30 @@ def test_principal_stress_is_the_largest_of_principal():
                                atol=1e-13)
 
 
+def test_the_bound_of_the_largest_value_holds_and_is_sharp():
+    """fem.tensors.largest_value_bound is at least the eigen-decomposition's largest value
+    of every tensor, including the uniaxial ones where p + sqrt(2/3)|dev| equals it (in
+    random frames, with offsets and scales over decades), and it is that value there to
+    its slack (1e-12 of the tensor's size)."""
+    from fem_frac.fem.tensors import largest_value_bound
+
+    rng = np.random.default_rng(12)
+    a = _random_symmetric(rng, 400) * 10.0 ** rng.uniform(-6, 9, 400)
+    q = np.linalg.qr(rng.normal(size=(400, 3, 3)))[0]
+    n = q[:, :, 0]
+    size = 10.0 ** rng.uniform(-6, 9, 400)
+    uniaxial = np.moveaxis(size[:, None, None] * np.einsum("ki,kj->kij", n, n), 0, -1)
+    for mats in (a, uniaxial, uniaxial - 0.3 * size * np.eye(3)[:, :, None]):
+        m = mandel_from_matrix(mats)
+        value = principal(m)[0][..., -1]
+        bound = largest_value_bound(m)
+        assert np.all(bound >= value)
+    # the uniaxial ones: the bound is the value to its slack and round-off
+    m = mandel_from_matrix(uniaxial)
+    gap = largest_value_bound(m) - principal(m)[0][..., -1]
+    assert np.all(gap <= 2e-12 * size)
+
+
 def test_principal_stress_rotated_uniaxial():
     """sigma = 5 n n^T - 1 (I - n n^T) in a random frame: sigma1 = 5 along n. The gap 6
     between the eigenvalues makes the direction well conditioned (error ~ eps |A| / gap)."""
