@@ -50,8 +50,20 @@ def cpu_of_run(root: Path, case: str) -> float:
     return (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
 
 
+def check_imports(root: Path) -> None:
+    """Stop unless a process started in ``root`` imports ``root``'s fem_frac (an installed
+    copy found first would make both checkouts the same)."""
+    done = subprocess.run([sys.executable, "-c", "import fem_frac; print(fem_frac.__file__)"],
+                          cwd=root, env=child_env(), capture_output=True, text=True)
+    found = Path(done.stdout.strip() or ".").resolve()
+    if root not in found.parents:
+        raise SystemExit(f"{root}: a process started there imports fem_frac from {found}")
+
+
 def measure(before: Path, after: Path, cases: list[str], rounds: int) -> dict:
     """``{case: {"before": [...], "after": [...]}}``, CPU seconds per round."""
+    for root in (before, after):
+        check_imports(root)
     times = {c: {"before": [], "after": []} for c in cases}
     for k in range(rounds):
         for case in cases:

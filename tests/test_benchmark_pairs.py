@@ -30,3 +30,11 @@ def test_a_failed_run_is_named():
                           "no_such_case", "--rounds", "1"],
                          capture_output=True, text=True, timeout=300)
     assert out.returncode != 0 and "no_such_case failed" in out.stderr
+
+
+def test_a_checkout_that_imports_another_copy_is_refused(tmp_path):
+    """A directory without its own fem_frac: its processes import another copy."""
+    out = subprocess.run([sys.executable, str(SCRIPT), "--before", str(tmp_path), "--cases",
+                          "vibrating_beam", "--rounds", "1"],
+                         capture_output=True, text=True, timeout=300)
+    assert out.returncode != 0 and "imports fem_frac from" in out.stderr
