@@ -109,8 +109,8 @@ def test_study_crack_area_below_1_3_ligament_areas_at_every_size(study_runs):
 def test_states_no_tet_can_crack_skip_the_eigen_decomposition(tmp_path, monkeypatch):
     """A cohesive crack's stage decomposes every tet's smoothed stress to choose sites, but
     only on the states where an upper bound of some tet's largest principal stress reaches
-    the strength: in this run on some of the states it looks for sites on, not all (every
-    one before the first crack is under the strength)."""
+    the strength: in this run on some of the states it looks for sites on, not all (the
+    first steps load the beam far under its strength)."""
     import fem_frac.fracture.stage as stage
     from fem_frac.app.cli import main
 
