@@ -1,8 +1,8 @@
 """Two checkouts of fem-frac on the same cases, interleaved: process CPU time per run.
 
-    git worktree add /tmp/before HEAD~1
-    python benchmarks/pairs.py --before /tmp/before --cases notched_beam_cohesive dcb
-    python benchmarks/pairs.py --before /tmp/before --after . --cases dcb --rounds 5
+    git worktree add ../before HEAD~1
+    python benchmarks/pairs.py --before ../before --cases notched_beam_cohesive dcb
+    python benchmarks/pairs.py --before ../before --after . --cases dcb --rounds 5
 
 Each round runs every case once under each checkout (``python -m fem_frac run
 ROOT/cases/CASE.yaml`` with ROOT the working directory, so that each run imports its own

@@ -27,28 +27,16 @@ from __future__ import annotations
 
 import argparse
 import os
-import time
+import sys
+from pathlib import Path
 
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")  # as the fem-frac command
 
 import numpy as np  # noqa: E402
 import scipy.sparse as sp  # noqa: E402
 
-FLUSH = np.zeros(0)
-
-
-def best(fn, repeats: int):
-    """Best wall seconds of ``repeats`` calls of ``fn`` from cold caches, and its result."""
-    global FLUSH
-    if FLUSH.size == 0:
-        FLUSH = np.zeros(64 * 2**20 // 8)
-    times, out = [], None
-    for _ in range(repeats):
-        FLUSH[:] = 1.0
-        t0 = time.perf_counter()
-        out = fn()
-        times.append(time.perf_counter() - t0)
-    return min(times), out
+sys.path.insert(0, str(Path(__file__).parent))
+from fracture import best  # noqa: E402  (best of the repeats, each from cold caches)
 
 
 def crack(mesh, x: float):
