@@ -27,11 +27,20 @@ measures it). Before the timed runs each solver runs once untimed (the file cach
 fem-frac's compiled modules, which the children may write: ``PYTHONDONTWRITEBYTECODE`` is
 dropped from their environment, as a user's installation caches them).
 
+Beside the solvers, the same way and round-robin with them, it times what any Python program
+that uses numpy pays before its first line of work (left out with ``--no-references``): this
+interpreter with ``-c pass``, ``-c "import numpy"`` and ``-c "import numpy, scipy.sparse"``
+(OpenBLAS on one thread, as ``fem-frac`` loads it). Where CalculiX's whole run takes less
+CPU time than importing numpy, no program built on numpy can match it at that size; the
+last table gives that comparison for each size.
+
 Needs CalculiX's ``ccx`` on the PATH (Debian: ``apt-get install calculix-ccx``, version 2.20).
 
     python benchmarks/calculix_sphere.py                         # every size, 3 repeats
     python benchmarks/calculix_sphere.py --sizes 0.5 0.2 --repeats 5
     python benchmarks/calculix_sphere.py --json out.json
+    python benchmarks/calculix_sphere.py --sizes 1 0.5 0.3     # the sizes CalculiX runs
+                                                               # in less than numpy's import
 """
 
 from __future__ import annotations
@@ -182,11 +191,25 @@ def cpu_children() -> float:
 CHILD_ENV = {k: v for k, v in os.environ.items() if k != "PYTHONDONTWRITEBYTECODE"}
 
 
-def timed(command: list[str], cwd: Path) -> tuple[float, float]:
+def timed(command: list[str], cwd: Path, env: dict | None = None) -> tuple[float, float]:
     before, start = cpu_children(), time.perf_counter()
     subprocess.run(command, cwd=cwd, check=True, stdout=subprocess.DEVNULL,
-                   stderr=subprocess.DEVNULL, env=CHILD_ENV)
+                   stderr=subprocess.DEVNULL, env=CHILD_ENV if env is None else env)
     return cpu_children() - before, time.perf_counter() - start
+
+
+# what a Python program pays before any work: the interpreter, then numpy, then
+# scipy.sparse (fem-frac's least imports), with OpenBLAS on one thread as fem-frac loads it
+REFERENCES = {"interpreter (-c pass)": "pass", "import numpy": "import numpy",
+              "import numpy, scipy.sparse": "import numpy, scipy.sparse"}
+REFERENCE_ENV = {**CHILD_ENV, "OPENBLAS_NUM_THREADS": CHILD_ENV.get("OPENBLAS_NUM_THREADS", "1")}
+
+
+def run_references(work: Path, cpu: dict) -> None:
+    """One run of each of :data:`REFERENCES`, its CPU s appended to ``cpu[name]``."""
+    for name, code in REFERENCES.items():
+        cpu.setdefault(name, []).append(timed([sys.executable, "-c", code], work,
+                                              REFERENCE_ENV)[0])
 
 
 def run_fem_frac(work: Path, size: float, command: Path) -> tuple[float, float, np.ndarray,
@@ -232,7 +255,10 @@ class Row:
     ccx_wall: list
 
 
-def measure(sizes, repeats: int, command: Path, ccx: str, work: Path) -> list[Row]:
+def measure(sizes, repeats: int, command: Path, ccx: str, work: Path,
+            references: dict | None = None) -> list[Row]:
+    """One :class:`Row` per size; with ``references`` (a dict), each repeat also runs
+    :func:`run_references` into it, between the two solvers."""
     rows = []
     for size in sizes:
         mesh, mesh_cpu = quadratic_mesh(size)
@@ -247,6 +273,8 @@ def measure(sizes, repeats: int, command: Path, ccx: str, work: Path) -> list[Ro
             cpu, wall, points, u_ff = run_fem_frac(work, size, command)
             ff_cpu.append(cpu)
             ff_wall.append(wall)
+            if references is not None:
+                run_references(work, references)
             cpu, wall, u_cx = run_ccx(work, size, ccx)
             cx_cpu.append(cpu)
             cx_wall.append(wall)
@@ -286,6 +314,22 @@ def table(rows: list[Row]) -> str:
     return "\n".join(lines)
 
 
+def references_table(rows: list[Row], references: dict) -> str:
+    """The start-up references (min and spread of CPU s) and, for each size, whether
+    CalculiX's whole run took less CPU time than importing numpy."""
+    lines = ["| before any work | CPU s min (spread) | runs |", "|---|---|---|"]
+    for name, cpu in references.items():
+        lines.append(f"| {name} | {min(cpu):.3f} ({max(cpu) - min(cpu):.3f}) | {len(cpu)} |")
+    numpy_cpu = min(references["import numpy"])
+    lines += ["", "| element size | u(b) error CalculiX | CalculiX CPU s min | CalculiX / "
+              "import numpy | CalculiX faster than importing numpy |", "|---" * 5 + "|"]
+    for r in rows:
+        cx = min(r.ccx_cpu)
+        lines.append(f"| {r.size:g} | {r.ccx_outer:+.2e} | {cx:.2f} | {cx / numpy_cpu:.2f} | "
+                     f"{'yes' if cx < numpy_cpu else 'no'} |")
+    return "\n".join(lines)
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--sizes", nargs="+", type=float, default=SIZES)
@@ -295,6 +339,8 @@ def main() -> None:
                         help=f"the command to run (default {FEM_FRAC})")
     parser.add_argument("--ccx", default="ccx", help="CalculiX's command (default ccx)")
     parser.add_argument("--keep", type=Path, help="keep the meshes, decks and results here")
+    parser.add_argument("--no-references", dest="references", action="store_false",
+                        help="leave out the start-up references (module docstring)")
     args = parser.parse_args()
     ccx = shutil.which(args.ccx)
     if ccx is None:
@@ -303,11 +349,16 @@ def main() -> None:
     with tempfile.TemporaryDirectory() as tmp:
         work = args.keep or Path(tmp)
         work.mkdir(parents=True, exist_ok=True)
-        rows = measure(args.sizes, args.repeats, args.fem_frac, ccx, work)
+        references = {} if args.references else None
+        rows = measure(args.sizes, args.repeats, args.fem_frac, ccx, work, references)
     print(f"load average after: {os.getloadavg()}", file=sys.stderr)
     print(table(rows))
+    if references:
+        print()
+        print(references_table(rows, references))
     if args.json:
-        args.json.write_text(json.dumps([asdict(r) for r in rows], indent=1))
+        args.json.write_text(json.dumps({"sizes": [asdict(r) for r in rows],
+                                         "references": references}, indent=1))
 
 
 if __name__ == "__main__":

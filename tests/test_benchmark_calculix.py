@@ -80,3 +80,17 @@ def test_both_solvers_solve_the_same_problem(tmp_path):
     # the pressure: far closer than the discretization error (2e-2 at this size)
     assert row.difference < 0.2 * row.fem_frac_error
     assert abs(row.fem_frac_error - row.ccx_error) < 0.05 * row.ccx_error
+
+
+def test_the_start_up_references_run(tmp_path):
+    """Each reference is one interpreter process whose CPU time is recorded per repeat (the
+    table compares CalculiX's runs with the least of numpy's)."""
+    cpu: dict = {}
+    cs.run_references(tmp_path, cpu)
+    cs.run_references(tmp_path, cpu)
+    assert list(cpu) == list(cs.REFERENCES)
+    assert all(len(v) == 2 and all(t >= 0.0 for t in v) for v in cpu.values())
+    row = cs.Row(1.0, 1, 1, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, [1.0], [2 * min(cpu["import numpy"])],
+                 [1.0], [1.0])
+    table = cs.references_table([row], cpu)
+    assert "| import numpy |" in table and table.rstrip().endswith("| no |")
