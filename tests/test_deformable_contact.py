@@ -17,7 +17,7 @@ from fem_frac.app.driver import prepare, simulate
 from fem_frac.app.overlap import TOLERANCE, run_overlaps
 from fem_frac.config import load_case
 from fem_frac.rigid.body import make_body, quaternion_from_matrix
-from fem_frac.rigid.deformable import Elements, _cross, detect, fragment_solid
+from fem_frac.rigid.deformable import Elements, detect, fragment_solid
 from fem_frac.rigid.fragment import RigidFragment, contact_points
 from fem_frac.rigid.stage import ElementContactEvent
 from fem_frac.rigid.surface import closest_on_triangles, exterior
@@ -244,21 +244,6 @@ def test_contact_with_the_finite_elements_needs_the_lumped_mass(tmp_path, capsys
     path.write_text(DROP.replace("integrator: central_difference",
                                  "integrator: newmark, mass: lumped"))
     assert main(["check", str(path)]) == 0
-
-
-def test_the_rigid_motions_cross_product_is_numpys_to_the_bit():
-    """``_cross`` (a body's angular velocity times its arms) against np.cross, signed
-    zeros and six decades of scale included."""
-    rng = np.random.default_rng(5)
-    for k in (0, 1, 3, 100):
-        for _ in range(50):
-            w = rng.standard_normal(3) * 10.0 ** rng.integers(-6, 6, 3)
-            r = rng.standard_normal((k, 3)) * 10.0 ** rng.integers(-6, 6, (k, 3))
-            w[rng.random(3) < 0.3] = -0.0
-            r[rng.random((k, 3)) < 0.3] = rng.choice([0.0, -0.0])
-            got, want = _cross(w, r), np.cross(w, r)
-            assert got.shape == want.shape
-            np.testing.assert_array_equal(got.view(np.int64), want.view(np.int64))
 
 
 def test_the_box_around_a_fragment_drops_no_contact(monkeypatch):

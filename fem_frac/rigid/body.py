@@ -21,6 +21,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .vectors import cross
+
 # Moments below this fraction of the largest count as zero (a degenerate axis).
 _DEGENERATE = 1e-14
 # Below this rotation angle (rad) exp_map uses its series: the truncation error ~theta^6/1e6
@@ -138,7 +140,7 @@ def quaternion_multiply(a, b) -> np.ndarray:
     """Hamilton product ``a * b`` (4,): ``R(a * b) = R(a) @ R(b)``."""
     aw, av = a[0], np.asarray(a[1:])
     bw, bv = b[0], np.asarray(b[1:])
-    return np.concatenate(([aw * bw - av @ bv], aw * bv + bw * av + np.cross(av, bv)))
+    return np.concatenate(([aw * bw - av @ bv], aw * bv + bw * av + cross(av, bv)))
 
 
 def exp_map(rotation_vector) -> np.ndarray:
@@ -200,4 +202,4 @@ def world_points(body: RigidBody) -> np.ndarray:
 def point_velocities(body: RigidBody, x_world) -> np.ndarray:
     """(k, 3) velocities ``v + omega x (x - position)`` of world points ``x_world`` (k, 3)."""
     arm = np.asarray(x_world, dtype=float) - body.position
-    return velocity(body) + np.cross(angular_velocity(body), arm)
+    return velocity(body) + cross(angular_velocity(body), arm)

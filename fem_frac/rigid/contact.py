@@ -47,6 +47,7 @@ import numpy as np
 from .active_set import exact_on_active_set as _polish
 from .body import RigidBody, inverse_inertia_world, rotation_matrix
 from .motion import free_flight
+from .vectors import cross
 
 # Gauss-Seidel: stop when a sweep changes no contact velocity by more than this fraction of
 # the largest velocity before the impulses.
@@ -91,17 +92,17 @@ def signed_distance(plane: Plane, x) -> np.ndarray:
 def contact_frame(n: np.ndarray) -> np.ndarray:
     """(3, 3) rows n, t1, t2: an orthonormal frame with the normal first."""
     helper = np.eye(3)[int(np.argmin(np.abs(n)))]
-    t1 = np.cross(n, helper)
+    t1 = cross(n, helper)
     t1 /= np.linalg.norm(t1)
-    return np.array([n, t1, np.cross(n, t1)])
+    return np.array([n, t1, cross(n, t1)])
 
 
 def frames(normals: np.ndarray) -> np.ndarray:
     """(c, 3, 3) rows n, t1, t2: :func:`contact_frame` of each of ``normals (c, 3)``."""
     helper = np.eye(3)[np.argmin(np.abs(normals), axis=1)]
-    t1 = np.cross(normals, helper)
+    t1 = cross(normals, helper)
     t1 /= np.linalg.norm(t1, axis=1, keepdims=True)
-    return np.stack([normals, t1, np.cross(normals, t1)], axis=1)
+    return np.stack([normals, t1, cross(normals, t1)], axis=1)
 
 
 @dataclass(frozen=True, eq=False)
@@ -126,7 +127,7 @@ def find_contacts(body: RigidBody, planes, horizon: float) -> Contacts:
     present velocity (a vertex touching and approaching counts even for a zero horizon)."""
     arm = body.points @ rotation_matrix(body.orientation).T
     x = body.position + arm
-    vel = body.momentum / body.mass + np.cross(inverse_inertia_world(body)
+    vel = body.momentum / body.mass + cross(inverse_inertia_world(body)
                                                 @ body.angular_momentum, arm)
     rows = []
     for plane in planes:
@@ -145,7 +146,7 @@ def _jacobian(contacts: Contacts) -> np.ndarray:
     """(3c, 6): row (i, d) maps (v, omega) to the velocity of point i along direction d."""
     d = contacts.frame.reshape(-1, 3)
     arm = np.repeat(contacts.arm, 3, axis=0)
-    return np.hstack([d, np.cross(arm, d)])
+    return np.hstack([d, cross(arm, d)])
 
 
 def _friction_impulse(entries, eigen, f, radius):

@@ -76,6 +76,7 @@ from .surface import (
     surface_points,
     within_box,
 )
+from .vectors import cross
 
 # Gaps below this fraction of a body's radius count as touching.
 _SLOP = 1e-9
@@ -137,18 +138,7 @@ def _concatenate(parts: list[tuple]) -> Contacts:
 def _rigid_motion(body: RigidBody, x: np.ndarray) -> np.ndarray:
     """(k, 3) velocities of the body's material points at world ``x``."""
     omega = inverse_inertia_world(body) @ body.angular_momentum
-    return body.momentum * inverse_mass(body) + _cross(omega, x - body.position)
-
-
-def _cross(w: np.ndarray, r: np.ndarray) -> np.ndarray:
-    """``(k, 3)`` ``w x r`` of one vector ``w (3,)`` and rows ``r (k, 3)``: np.cross's, to
-    the bit (the same products and differences), without its overhead (once per body and
-    step)."""
-    out = np.empty(r.shape)
-    out[:, 0] = w[1] * r[:, 2] - w[2] * r[:, 1]
-    out[:, 1] = w[2] * r[:, 0] - w[0] * r[:, 2]
-    out[:, 2] = w[0] * r[:, 1] - w[1] * r[:, 0]
-    return out
+    return body.momentum * inverse_mass(body) + cross(omega, x - body.position)
 
 
 def _closing(gap, normal, dv, da, dt: float) -> np.ndarray:
@@ -321,7 +311,7 @@ def _jacobian(el: Elements, bodies, contacts: Contacts, nodes, used):
     arm = np.repeat(contacts.point, 3, axis=0) - np.array(
         [bodies[b].position for b in used])[body]
     jac[rows[:, None], col[:, None] + np.arange(3)] = -d
-    jac[rows[:, None], col[:, None] + 3 + np.arange(3)] = -np.cross(arm, d)
+    jac[rows[:, None], col[:, None] + 3 + np.arange(3)] = -cross(arm, d)
     w = np.zeros((k, 6, 6))
     for i, b in enumerate(used):
         w[i, :3, :3] = np.eye(3) * inverse_mass(bodies[b])

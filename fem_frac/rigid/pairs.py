@@ -63,6 +63,7 @@ from .contact import (
 from .motion import free_flight
 from .nonconvex import touching_shapes
 from .separation import least_translation, overlap_constraints, world_tets
+from .vectors import cross
 
 # Pairs closer than this fraction of their radii count as touching (a resting contact at
 # gap 0, or a round-off apart, stays found).
@@ -198,7 +199,7 @@ def _jacobian(rows: Rows, positions: np.ndarray, n: int) -> np.ndarray:
         body = np.repeat(side, 3)
         live = np.flatnonzero(body >= 0)
         arm = point[live] - positions[body[live]]
-        block = sign * np.hstack([d[live], np.cross(arm, d[live])])
+        block = sign * np.hstack([d[live], cross(arm, d[live])])
         jac[live[:, None], 6 * body[live][:, None] + np.arange(6)] = block
     return jac
 

@@ -22,6 +22,7 @@ import numpy as np
 
 from ..mesh.mesh import TET_EDGES, TET_FACES
 from .body import rotation_matrix
+from .vectors import cross
 
 WEDGED = 2.0
 
@@ -52,7 +53,7 @@ def least_translation(normals, gaps) -> np.ndarray:
 def _face_axes(x: np.ndarray) -> np.ndarray:
     """(k, 4, 3) the (unnormalized) face normals of tets ``x (k, 4, 3)``."""
     c = x[:, TET_FACES]
-    return np.cross(c[:, :, 1] - c[:, :, 0], c[:, :, 2] - c[:, :, 0])
+    return cross(c[:, :, 1] - c[:, :, 0], c[:, :, 2] - c[:, :, 0])
 
 
 def tet_overlaps(xa: np.ndarray, xb: np.ndarray,
@@ -67,8 +68,8 @@ def tet_overlaps(xa: np.ndarray, xb: np.ndarray,
         return np.zeros((0, 3)), np.zeros(0)
     ea = xa[:, TET_EDGES[:, 1]] - xa[:, TET_EDGES[:, 0]]
     eb = xb[:, TET_EDGES[:, 1]] - xb[:, TET_EDGES[:, 0]]
-    cross = np.cross(ea[:, :, None], eb[:, None, :]).reshape(k, 36, 3)
-    axes = np.concatenate([_face_axes(xa), _face_axes(xb), cross], axis=1)
+    edges = cross(ea[:, :, None], eb[:, None, :]).reshape(k, 36, 3)
+    axes = np.concatenate([_face_axes(xa), _face_axes(xb), edges], axis=1)
     length = np.linalg.norm(axes, axis=2)
     if size is None:
         size = max(float(np.abs(ea).max()), float(np.abs(eb).max()))

@@ -28,6 +28,7 @@ from ..mesh.mesh import (
 )
 from .body import RigidBody, rotation_matrix, world_points
 from .collide import hull
+from .vectors import cross
 
 # A point counts as inside a tet when its barycentric coordinates are all above this
 # (round-off of the coordinates of a point on a face shared by two tets).
@@ -123,7 +124,7 @@ def solid(body_coords: np.ndarray, cells: np.ndarray) -> Solid:
     rows = np.flatnonzero(exterior_face_rows(tets, len(x)))
     faces = tets[:, TET_FACES].reshape(-1, 3)[rows]
     corner = x[faces]
-    normal = np.cross(corner[:, 1] - corner[:, 0], corner[:, 2] - corner[:, 0])
+    normal = cross(corner[:, 1] - corner[:, 0], corner[:, 2] - corner[:, 0])
     inward = np.einsum("ij,ij->i", normal,
                        corner.mean(axis=1) - x[tets[rows // 4]].mean(axis=1)) < 0.0
     faces[inward] = faces[inward][:, [0, 2, 1]]
@@ -450,6 +451,6 @@ def _distances(p: np.ndarray, corners: np.ndarray) -> tuple[np.ndarray, np.ndarr
 def face_normals(x: np.ndarray, faces: np.ndarray) -> np.ndarray:
     """``(f, 3)`` unit normals of the triangles (right-hand rule: outward for exterior
     faces)."""
-    n = np.cross(x[faces[:, 1]] - x[faces[:, 0]], x[faces[:, 2]] - x[faces[:, 0]])
+    n = cross(x[faces[:, 1]] - x[faces[:, 0]], x[faces[:, 2]] - x[faces[:, 0]])
     norm = np.linalg.norm(n, axis=1, keepdims=True)
     return n / np.where(norm > 0, norm, 1.0)
