@@ -239,3 +239,42 @@ def test_orientation_stays_a_unit_quaternion_over_a_long_tumble():
     assert norm_error.max() <= 4 * EPS
     r = rotation_matrix(body.orientation)
     assert np.abs(r @ r.T - np.eye(3)).max() <= 8 * EPS
+
+
+def _rotation_on_numpy_scalars(q):
+    """rotation_matrix as it was, on numpy's scalars (the reference of the test below)."""
+    w, x, y, z = q
+    return np.array(
+        [
+            [1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
+            [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
+            [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)],
+        ]
+    )
+
+
+def _inverse_moments_on_numpy(inertia):
+    inertia = np.asarray(inertia, dtype=float)
+    live = inertia > 1e-14 * max(float(inertia.max()), 0.0)
+    return np.where(live, 1.0 / np.where(live, inertia, 1.0), 0.0)
+
+
+def test_rotation_and_inverse_moments_in_python_floats_are_numpys_to_the_bit():
+    """rotation_matrix and inverse_moments compute on Python floats: the same roundings
+    as on numpy's scalars and arrays, signed zeros, degenerate and fixed bodies included."""
+    from fem_frac.rigid.body import inverse_moments
+
+    rng = np.random.default_rng(11)
+    quaternions = list(rng.standard_normal((500, 4)))
+    quaternions += [np.array(q, dtype=float) for q in
+                    ((1, 0, 0, 0), (-0.0, 1, 0, -0.0), (0.5, -0.5, 0.5, -0.5), (0, 0, 0, 1))]
+    for q in quaternions:
+        q = q / np.linalg.norm(q)
+        assert rotation_matrix(q).tobytes() == _rotation_on_numpy_scalars(q).tobytes()
+    moments = list(np.abs(rng.standard_normal((500, 3))) * 10.0 ** rng.integers(-8, 8, (500, 3)))
+    moments += [np.array(m, dtype=float) for m in
+                ((1.0, 1.0, 0.0), (1.0, 1e-15, 1e-13), (np.inf,) * 3, (0.0, 0.0, 0.0),
+                 (2.0, -0.0, 2.0))]
+    for m in moments:
+        got, want = inverse_moments(m), _inverse_moments_on_numpy(m)
+        assert got.dtype == want.dtype and got.tobytes() == want.tobytes()
