@@ -54,3 +54,26 @@ def test_a_rigid_motions_arms_signed_zeros_and_six_decades():
             w[rng.random(3) < 0.3] = -0.0
             r[rng.random((k, 3)) < 0.3] = rng.choice([0.0, -0.0])
             _same_bits(cross(w, r), np.cross(w, r))
+
+
+def test_lengths_are_numpys_norms_to_the_bit():
+    """length (one vector, a numpy scalar) and lengths (the last axis) against
+    np.linalg.norm, on contiguous and strided vectors, over and underflowing scales."""
+    from fem_frac.rigid.vectors import length, lengths
+
+    for scale in (1.0, 1e-170, 1e170, 1e-320):
+        _lengths_at(RNG.standard_normal((60, 4, 3)) * scale, length, lengths)
+    assert length([3, 4, 0]) == 5.0 and np.isnan(length([np.nan, 0.0, 0.0]))
+
+
+def _lengths_at(v, length, lengths):
+    with np.errstate(over="ignore", under="ignore"):
+        got, want = lengths(v), np.linalg.norm(v, axis=-1)
+        assert got.tobytes() == want.tobytes()
+        assert lengths(v[:, 0]).tobytes() == np.linalg.norm(v[:, 0], axis=1).tobytes()
+        for row in v[:, 1]:
+            assert type(length(row)) is type(np.linalg.norm(row))
+            assert length(row).tobytes() == np.linalg.norm(row).tobytes()
+        strided = v[:, :, 0][:, :3]  # a (60, 3) view whose rows are not contiguous
+        for row in strided:
+            assert length(row).tobytes() == np.linalg.norm(row).tobytes()

@@ -21,7 +21,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .vectors import cross
+from .vectors import cross, length
 
 # Moments below this fraction of the largest count as zero (a degenerate axis).
 _DEGENERATE = 1e-14
@@ -153,7 +153,7 @@ def exp_map(rotation_vector) -> np.ndarray:
     for small theta.
     """
     phi = np.asarray(rotation_vector, dtype=float)
-    theta = float(np.linalg.norm(phi))
+    theta = float(length(phi))
     if theta < _SMALL_ANGLE:
         t2 = theta * theta
         half_sinc = 0.5 - t2 / 48.0 + t2 * t2 / 3840.0

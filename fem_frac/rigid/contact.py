@@ -47,7 +47,7 @@ import numpy as np
 from .active_set import exact_on_active_set as _polish
 from .body import RigidBody, inverse_inertia_world, rotation_matrix
 from .motion import free_flight
-from .vectors import cross
+from .vectors import cross, length, lengths
 
 # Gauss-Seidel: stop when a sweep changes no contact velocity by more than this fraction of
 # the largest velocity before the impulses.
@@ -93,7 +93,7 @@ def contact_frame(n: np.ndarray) -> np.ndarray:
     """(3, 3) rows n, t1, t2: an orthonormal frame with the normal first."""
     helper = np.eye(3)[int(np.argmin(np.abs(n)))]
     t1 = cross(n, helper)
-    t1 /= np.linalg.norm(t1)
+    t1 /= length(t1)
     return np.array([n, t1, cross(n, t1)])
 
 
@@ -101,7 +101,7 @@ def frames(normals: np.ndarray) -> np.ndarray:
     """(c, 3, 3) rows n, t1, t2: :func:`contact_frame` of each of ``normals (c, 3)``."""
     helper = np.eye(3)[np.argmin(np.abs(normals), axis=1)]
     t1 = cross(normals, helper)
-    t1 /= np.linalg.norm(t1, axis=1, keepdims=True)
+    t1 /= lengths(t1)[:, None]
     return np.stack([normals, t1, cross(normals, t1)], axis=1)
 
 

@@ -76,7 +76,7 @@ from .surface import (
     surface_points,
     within_box,
 )
-from .vectors import cross
+from .vectors import cross, length, lengths
 
 # Gaps below this fraction of a body's radius count as touching.
 _SLOP = 1e-9
@@ -155,12 +155,12 @@ def _near_nodes(el: Elements, body: RigidBody, radius: float, accel: np.ndarray,
     nodes = el.exterior.nodes
     omega = inverse_inertia_world(body) @ body.angular_momentum
     reach = (dt * (np.abs(el.v[nodes]).sum(axis=1).max(initial=0.0)
-                   + np.linalg.norm(body.momentum * inverse_mass(body))
-                   + radius * np.linalg.norm(omega))
+                   + length(body.momentum * inverse_mass(body))
+                   + radius * length(omega))
              + 0.5 * dt * dt * (np.abs(el.a[nodes]).sum(axis=1).max(initial=0.0)
-                                + np.linalg.norm(accel))
+                                + length(accel))
              + _SLOP * radius)
-    return nodes[np.linalg.norm(el.x[nodes] - body.position, axis=1) <= radius + reach]
+    return nodes[lengths(el.x[nodes] - body.position) <= radius + reach]
 
 
 def _near_box(el: Elements, near: np.ndarray, body: RigidBody, shape: Solid,
@@ -175,11 +175,11 @@ def _near_box(el: Elements, near: np.ndarray, body: RigidBody, shape: Solid,
     if near.size == 0:
         return near
     x = el.x[near]
-    omega = np.linalg.norm(inverse_inertia_world(body) @ body.angular_momentum)
-    speed = (np.linalg.norm(el.v[near], axis=1) + np.linalg.norm(body.momentum)
-             * inverse_mass(body) + omega * np.linalg.norm(x - body.position, axis=1))
-    close = (dt * speed + 0.5 * dt * dt * (np.linalg.norm(el.a[near], axis=1)
-                                          + np.linalg.norm(accel)) + _SLOP * radius)
+    omega = length(inverse_inertia_world(body) @ body.angular_momentum)
+    speed = (lengths(el.v[near]) + length(body.momentum)
+             * inverse_mass(body) + omega * lengths(x - body.position))
+    close = (dt * speed + 0.5 * dt * dt * (lengths(el.a[near])
+                                          + length(accel)) + _SLOP * radius)
     return near[within_box(x, body, shape, _BOX_ROOM * close + _SLOP * radius)]
 
 
@@ -220,9 +220,9 @@ def _vertices_in_elements(el: Elements, bodies, shapes, friction, accel,
     p = np.concatenate(points) if points else np.zeros((0, 3))
     xv = el.vertices
     faces = el.exterior.faces
-    speed = max((np.linalg.norm(b.momentum * inverse_mass(b))
+    speed = max((length(b.momentum * inverse_mass(b))
                  + hull(b.points).radius
-                 * np.linalg.norm(inverse_inertia_world(b) @ b.angular_momentum)
+                 * length(inverse_inertia_world(b) @ b.angular_momentum)
                  for b in bodies), default=0.0)
     reach = (dt * (np.abs(el.v).sum(axis=1).max(initial=0.0) + speed)
              + 0.5 * dt * dt * (np.abs(el.a).sum(axis=1).max(initial=0.0)

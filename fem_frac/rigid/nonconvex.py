@@ -30,6 +30,7 @@ import numpy as np
 from .body import RigidBody
 from .collide import Touch, hull
 from .surface import Solid, hull_gaps, solid, solid_gaps, surface_points
+from .vectors import lengths
 
 # A piece whose convex hull exceeds its own volume by more than this fraction touches other
 # bodies by its own tets. A piece strained at hand-off is convex to its strain (1e-3 bows
@@ -61,7 +62,7 @@ def _points_in(a: RigidBody, sa: Solid | None, b: RigidBody, sb: Solid | None,
     """``(points, normals, gaps)`` of the surface vertices of ``a`` inside ``b`` or within
     ``margin`` of it; the normals are ``b``'s outer ones."""
     x = surface_points(a, sa)
-    x = x[np.linalg.norm(x - b.position, axis=1) <= _radius(b, sb) + margin]
+    x = x[lengths(x - b.position) <= _radius(b, sb) + margin]
     if len(x) == 0:
         return x, np.zeros((0, 3)), np.zeros(0)
     gap, normal = hull_gaps(x, b) if sb is None else solid_gaps(x, b, sb)

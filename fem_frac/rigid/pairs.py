@@ -63,7 +63,7 @@ from .contact import (
 from .motion import free_flight
 from .nonconvex import touching_shapes
 from .separation import least_translation, overlap_constraints, world_tets
-from .vectors import cross
+from .vectors import cross, length
 
 # Pairs closer than this fraction of their radii count as touching (a resting contact at
 # gap 0, or a round-off apart, stays found).
@@ -166,9 +166,9 @@ def margin(a: RigidBody, b: RigidBody, dt: float) -> float:
     ra, rb = hull(a.points).radius, hull(b.points).radius
     va = a.momentum * inverse_mass(a)
     vb = b.momentum * inverse_mass(b)
-    spin = (ra * np.linalg.norm(inverse_inertia_world(a) @ a.angular_momentum)
-            + rb * np.linalg.norm(inverse_inertia_world(b) @ b.angular_momentum))
-    return float(dt * (np.linalg.norm(vb - va) + spin) + _SLOP * (ra + rb))
+    spin = (ra * length(inverse_inertia_world(a) @ a.angular_momentum)
+            + rb * length(inverse_inertia_world(b) @ b.angular_momentum))
+    return float(dt * (length(vb - va) + spin) + _SLOP * (ra + rb))
 
 
 def contact_rows(bodies, movable, pairs, coefficients, planes, dt: float,
@@ -293,10 +293,10 @@ def _own_parts(bodies, movable, pairs, shapes) -> list[tuple]:
         normal, depth = overlap_constraints(world_tets(a, shapes[i]),
                                             world_tets(b, shapes[j]), tolerance)
         delta = least_translation(normal, -depth)
-        length = float(np.linalg.norm(delta))
-        if length > 0.0:
+        size = float(length(delta))
+        if size > 0.0:
             parts.append((np.array([i]), np.array([j]), 0.5 * (a.position + b.position)[None],
-                          contact_frame(delta / length)[None], np.array([-length]),
+                          contact_frame(delta / size)[None], np.array([-size]),
                           np.zeros(1), np.zeros(1), np.ones(1, dtype=bool),
                           np.ones(1, dtype=bool)))
     return parts
@@ -405,9 +405,9 @@ def step_island(island: Island, dt: float, gravity, planes):
 def _touches(everything, awake, dt: float, gravity, shapes) -> list[tuple[int, int, Touch]]:
     """``(i, j, touch)`` of every pair with an awake body that touches or may touch within
     ``dt``: broad phase on swept boxes, then the narrow phase (:func:`pair_touch`)."""
-    speed = np.array([np.linalg.norm(b.momentum) * inverse_mass(b)
+    speed = np.array([length(b.momentum) * inverse_mass(b)
                       + hull(b.points).radius
-                      * np.linalg.norm(inverse_inertia_world(b) @ b.angular_momentum)
+                      * length(inverse_inertia_world(b) @ b.angular_momentum)
                       for b in everything])
     radius = np.array([hull(b.points).radius for b in everything])
     lo, hi = swept_boxes(everything, dt, gravity, dt * speed + _SLOP * radius)

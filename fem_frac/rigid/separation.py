@@ -22,7 +22,7 @@ import numpy as np
 
 from ..mesh.mesh import TET_EDGES, TET_FACES
 from .body import rotation_matrix
-from .vectors import cross
+from .vectors import cross, lengths
 
 WEDGED = 2.0
 
@@ -70,7 +70,7 @@ def tet_overlaps(xa: np.ndarray, xb: np.ndarray,
     eb = xb[:, TET_EDGES[:, 1]] - xb[:, TET_EDGES[:, 0]]
     edges = cross(ea[:, :, None], eb[:, None, :]).reshape(k, 36, 3)
     axes = np.concatenate([_face_axes(xa), _face_axes(xb), edges], axis=1)
-    length = np.linalg.norm(axes, axis=2)
+    length = lengths(axes)
     if size is None:
         size = max(float(np.abs(ea).max()), float(np.abs(eb).max()))
     valid = length > 1e-9 * size * size  # parallel edges give no axis
@@ -135,7 +135,7 @@ def _face_overlap(xa: np.ndarray, xb: np.ndarray, size: float) -> np.ndarray:
     if len(xa) == 0:
         return np.zeros(0)
     axes = np.concatenate([_face_axes(xa), _face_axes(xb)], axis=1)
-    length = np.linalg.norm(axes, axis=2)
+    length = lengths(axes)
     valid = length > 1e-9 * size * size
     axes = axes / np.where(valid, length, 1.0)[:, :, None]
     pa = np.einsum("kai,kvi->kav", axes, xa)

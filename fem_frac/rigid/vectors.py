@@ -1,10 +1,11 @@
-"""Cross products of small vectors for the rigid-body steps, to numpy's bit.
+"""Cross products and lengths of small vectors for the rigid-body steps, to numpy's bit.
 
-The contact steps take tens of thousands of cross products of a few vectors each (contact
-frames, Jacobian rows, the tets' face normals and edge axes of the overlap tests).
-``np.cross`` spends most of such a call on its generality (axis arguments, ``moveaxis``,
-casts); :func:`cross` does the same products and differences in the same order, so its
-results are ``np.cross``'s to the bit (``tests/test_rigid_vectors.py``).
+The contact steps take tens of thousands of cross products and lengths of a few vectors
+each (contact frames, Jacobian rows, the tets' face normals and edge axes of the overlap
+tests, the reach of a body's step). ``np.cross`` and ``np.linalg.norm`` spend most of such
+a call on their generality (axis arguments, ``moveaxis``, casts, dispatch); the functions
+here do the same products, sums and roots in the same order, so their results are numpy's
+to the bit (``tests/test_rigid_vectors.py``).
 """
 
 from __future__ import annotations
@@ -32,3 +33,17 @@ def cross(a, b) -> np.ndarray:
     np.multiply(a0, b1, out=out[..., 2])
     out[..., 2] -= a1 * b0
     return out
+
+
+def length(v) -> np.floating:
+    """``np.linalg.norm(v)`` of one float vector: the square root of its dot product with
+    itself, as ``norm`` takes it (``ravel``, then ``dot``), a numpy scalar."""
+    x = np.asarray(v, dtype=float).ravel(order="K")
+    return np.sqrt(x.dot(x))
+
+
+def lengths(v: np.ndarray) -> np.ndarray:
+    """``(...)`` the lengths of the vectors ``v (..., 3)``: ``np.linalg.norm(v, axis=-1)``,
+    its sum of squares in the same order (numpy's reduction over three terms runs left to
+    right)."""
+    return np.sqrt(v[..., 0] * v[..., 0] + v[..., 1] * v[..., 1] + v[..., 2] * v[..., 2])
