@@ -39,8 +39,9 @@ Needs CalculiX's ``ccx`` on the PATH (Debian: ``apt-get install calculix-ccx``, 
     python benchmarks/calculix_sphere.py                         # every size, 3 repeats
     python benchmarks/calculix_sphere.py --sizes 0.5 0.2 --repeats 5
     python benchmarks/calculix_sphere.py --json out.json
-    python benchmarks/calculix_sphere.py --sizes 1 0.5 0.3     # the sizes CalculiX runs
-                                                               # in less than numpy's import
+    python benchmarks/calculix_sphere.py --sizes 1 0.5 0.3 0.2  # the coarse sizes, where
+                                                                # CalculiX's whole run costs
+                                                                # about numpy's import
 """
 
 from __future__ import annotations

@@ -1,5 +1,6 @@
-"""fem_frac.rigid.vectors.cross is np.cross to the bit: the same products and
-differences, on vectors, rows, broadcast shapes and special values."""
+"""fem_frac.rigid.vectors is numpy to the bit: cross is np.cross (the same products and
+differences), length and lengths np.linalg.norm (the same sums and roots), on vectors,
+rows, broadcast and strided shapes, extreme scales and special values."""
 
 from __future__ import annotations
 

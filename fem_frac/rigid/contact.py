@@ -128,7 +128,7 @@ def find_contacts(body: RigidBody, planes, horizon: float) -> Contacts:
     arm = body.points @ rotation_matrix(body.orientation).T
     x = body.position + arm
     vel = body.momentum / body.mass + cross(inverse_inertia_world(body)
-                                                @ body.angular_momentum, arm)
+                                             @ body.angular_momentum, arm)
     rows = []
     for plane in planes:
         gap, vn = signed_distance(plane, x), vel @ plane.normal
